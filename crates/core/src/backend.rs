@@ -1,0 +1,83 @@
+//! The interface between a simulation driver (the needle, the CLI) and whatever computes
+//! the tissue: the CPU backend here, the GPU backend in `needlesim-gpu`.
+//!
+//! A backend owns the node arrays; callers read and write ranges of nodes (the needle
+//! nodes) and individual neighbour rows, and step it.
+
+use crate::error::SimError;
+use crate::math::Vec4;
+use std::ops::Range;
+
+/// A per-node vector array of the backend.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NodeField {
+    /// Positions (w = inverse mass).
+    Position,
+    /// Velocities.
+    Velocity,
+    /// Elastic forces of the last force evaluation.
+    Force,
+}
+
+/// Something that steps the tissue.
+pub trait Backend {
+    /// Human-readable name (e.g. `cpu (1 thread)`).
+    fn name(&self) -> String;
+    /// Allocated node slots.
+    fn capacity(&self) -> usize;
+    /// Nodes currently simulated.
+    fn n_active(&self) -> usize;
+    /// Changes the number of simulated nodes (at most the capacity).
+    fn set_n_active(&mut self, n: usize) -> Result<(), SimError>;
+    /// Evaluates the elastic forces of all active nodes.
+    fn compute_forces(&mut self);
+    /// Advances positions and velocities by one time step using the current forces.
+    fn integrate(&mut self);
+    /// Runs `n` steps of force evaluation and integration.
+    fn step(&mut self, n: u64) {
+        for _ in 0..n {
+            self.compute_forces();
+            self.integrate();
+        }
+    }
+    /// Steps run since creation.
+    fn steps_taken(&self) -> u64;
+    /// Copies `range` of `field` into `out` (`out.len() == range.len()`).
+    fn read(&mut self, field: NodeField, range: Range<usize>, out: &mut [Vec4]) -> Result<(), SimError>;
+    /// Overwrites `data.len()` nodes of `field` starting at `first`.
+    fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError>;
+    /// Overwrites the neighbour rows of nodes `first..first + index.len() / K`.
+    fn write_neighbour_rows(&mut self, first: usize, index: &[u32], weight: &[f32]) -> Result<(), SimError>;
+
+    /// Reads the positions of all active nodes and returns an error naming the first
+    /// non-finite position or velocity.
+    fn check_finite(&mut self) -> Result<(), SimError> {
+        let n = self.n_active();
+        let mut buf = vec![[0.0f32; 4]; n];
+        for (field, name) in [(NodeField::Position, "position"), (NodeField::Velocity, "velocity")] {
+            self.read(field, 0..n, &mut buf)?;
+            if let Some(node) = buf.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return Err(SimError::Diverged {
+                    step: self.steps_taken(),
+                    node,
+                    field: name,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Checks that `range` lies within `limit` nodes.
+pub fn check_range(range: &Range<usize>, limit: usize, what: &'static str) -> Result<(), SimError> {
+    if range.start > range.end || range.end > limit {
+        Err(SimError::OutOfRange {
+            start: range.start,
+            end: range.end,
+            limit,
+            what,
+        })
+    } else {
+        Ok(())
+    }
+}

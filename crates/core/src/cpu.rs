@@ -1,0 +1,263 @@
+//! The CPU backend: the reference implementation of every kernel, on one thread or on all
+//! threads (rayon). Each node's force and update depend only on the previous state, so the
+//! single- and multi-threaded backends give bitwise identical results.
+
+use crate::backend::{check_range, Backend, NodeField};
+use crate::error::SimError;
+use crate::integrator::integrate_node;
+use crate::math::Vec4;
+use crate::models::{local_shape_matching, mass_spring, ShapeInfo};
+use crate::scene::Material;
+use crate::tissue::Tissue;
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Nodes per parallel work item.
+const CHUNK: usize = 256;
+
+/// How the CPU backend uses threads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Threading {
+    /// One thread.
+    Single,
+    /// A rayon pool: `None` uses the global pool (all hardware threads), `Some(n)` a pool of
+    /// n threads owned by the backend.
+    #[default]
+    Parallel,
+    /// A pool of exactly this many threads.
+    Threads(usize),
+}
+
+/// Error building a thread pool.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot create a pool of {threads} threads: {message}")]
+pub struct ThreadPoolError {
+    /// Threads asked for.
+    pub threads: usize,
+    /// The pool builder's message.
+    pub message: String,
+}
+
+/// CPU backend.
+pub struct CpuBackend {
+    tissue: Tissue,
+    pool: Option<rayon::ThreadPool>,
+    parallel: bool,
+    steps: u64,
+}
+
+impl CpuBackend {
+    /// A backend that owns `tissue`.
+    pub fn new(tissue: Tissue, threading: Threading) -> Result<CpuBackend, ThreadPoolError> {
+        let (pool, parallel) = match threading {
+            Threading::Single => (None, false),
+            Threading::Parallel => (None, true),
+            Threading::Threads(n) => {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(n)
+                    .build()
+                    .map_err(|e| ThreadPoolError {
+                        threads: n,
+                        message: e.to_string(),
+                    })?;
+                (Some(pool), n > 1)
+            }
+        };
+        Ok(CpuBackend {
+            tissue,
+            pool,
+            parallel,
+            steps: 0,
+        })
+    }
+
+    /// The tissue (all arrays) as it is now.
+    pub fn tissue(&self) -> &Tissue {
+        &self.tissue
+    }
+
+    /// Mutable access to the tissue, for drivers that edit arrays in place.
+    pub fn tissue_mut(&mut self) -> &mut Tissue {
+        &mut self.tissue
+    }
+
+    /// Threads used per step.
+    pub fn threads(&self) -> usize {
+        match (&self.pool, self.parallel) {
+            (_, false) => 1,
+            (Some(p), true) => p.current_num_threads(),
+            (None, true) => rayon::current_num_threads(),
+        }
+    }
+}
+
+/// Runs `f(i, &mut a[i], &mut b[i])` for every node, serially or in parallel chunks.
+fn for_each_node<A: Send, B: Send>(
+    pool: Option<&rayon::ThreadPool>,
+    parallel: bool,
+    a: &mut [A],
+    b: &mut [B],
+    f: impl Fn(usize, &mut A, &mut B) + Sync + Send,
+) {
+    if !parallel {
+        for (i, (x, y)) in a.iter_mut().zip(b.iter_mut()).enumerate() {
+            f(i, x, y);
+        }
+        return;
+    }
+    let mut job = move || {
+        a.par_chunks_mut(CHUNK)
+            .zip(b.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, (ca, cb))| {
+                for (k, (x, y)) in ca.iter_mut().zip(cb.iter_mut()).enumerate() {
+                    f(c * CHUNK + k, x, y);
+                }
+            })
+    };
+    match pool {
+        Some(p) => p.install(job),
+        None => job(),
+    }
+}
+
+impl Backend for CpuBackend {
+    fn name(&self) -> String {
+        match self.threads() {
+            1 => "cpu (1 thread)".into(),
+            n => format!("cpu-parallel ({n} threads)"),
+        }
+    }
+
+    fn capacity(&self) -> usize {
+        self.tissue.state.capacity()
+    }
+
+    fn n_active(&self) -> usize {
+        self.tissue.state.n_active
+    }
+
+    fn set_n_active(&mut self, n: usize) -> Result<(), SimError> {
+        check_range(&(0..n), self.capacity(), "allocated")?;
+        self.tissue.state.n_active = n;
+        Ok(())
+    }
+
+    fn compute_forces(&mut self) {
+        let t = &mut self.tissue;
+        let n = t.state.n_active;
+        let pool = self.pool.as_ref();
+        let nb = &t.neighbours;
+        let pos = &t.state.positions;
+        let vel = &t.state.velocities;
+        let forces = &mut t.state.forces[..n];
+        match (&t.material, &mut t.shape) {
+            (
+                Material::MassSpring {
+                    stiffness,
+                    spring_damping,
+                },
+                ShapeInfo::MassSpring { rest_length },
+            ) => {
+                let (k, c) = (*stiffness as f32, *spring_damping as f32);
+                let rest_length = &rest_length[..];
+                let mut unit = vec![(); n];
+                for_each_node(pool, self.parallel, forces, &mut unit, |i, f, _| {
+                    *f = mass_spring::force(i, pos, vel, nb, rest_length, k, c);
+                });
+            }
+            (
+                Material::LocalShapeMatching {
+                    stiffness,
+                    rotation_iterations,
+                    ..
+                },
+                ShapeInfo::LocalShapeMatching {
+                    rest_position,
+                    shape_vector,
+                    rotation,
+                    cluster_centre,
+                },
+            ) => {
+                let (k, iters) = (*stiffness as f32, *rotation_iterations);
+                let (rest, sv) = (&rest_position[..], &shape_vector[..]);
+                match cluster_centre {
+                    None => {
+                        for_each_node(pool, self.parallel, forces, &mut rotation[..n], |i, f, q| {
+                            *f = local_shape_matching::node_force(i, pos, rest, sv[i], nb, k, iters, q);
+                        });
+                    }
+                    Some(centre) => {
+                        for_each_node(pool, self.parallel, &mut centre[..n], &mut rotation[..n], |i, c, q| {
+                            (*c, *q) = local_shape_matching::cluster_frame(i, pos, rest, sv[i], nb, iters, *q);
+                        });
+                        let (centre, rotation) = (&centre[..], &rotation[..]);
+                        let mut unit = vec![(); n];
+                        for_each_node(pool, self.parallel, forces, &mut unit, |j, f, _| {
+                            *f = local_shape_matching::cluster_force(j, pos, rest, sv, nb, k, centre, rotation);
+                        });
+                    }
+                }
+            }
+            (m, s) => unreachable!("material {m:?} built with shape info {:?}", s.arrays()),
+        }
+    }
+
+    fn integrate(&mut self) {
+        let t = &mut self.tissue;
+        let n = t.state.n_active;
+        let params = t.step;
+        let forces = &t.state.forces;
+        for_each_node(
+            self.pool.as_ref(),
+            self.parallel,
+            &mut t.state.positions[..n],
+            &mut t.state.velocities[..n],
+            |i, x, v| integrate_node(x, v, forces[i], &params),
+        );
+        self.steps += 1;
+    }
+
+    fn steps_taken(&self) -> u64 {
+        self.steps
+    }
+
+    fn read(&mut self, field: NodeField, range: Range<usize>, out: &mut [Vec4]) -> Result<(), SimError> {
+        check_range(&range, self.capacity(), "allocated")?;
+        let src = match field {
+            NodeField::Position => &self.tissue.state.positions,
+            NodeField::Velocity => &self.tissue.state.velocities,
+            NodeField::Force => &self.tissue.state.forces,
+        };
+        out.copy_from_slice(&src[range]);
+        Ok(())
+    }
+
+    fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError> {
+        let range = first..first + data.len();
+        check_range(&range, self.capacity(), "allocated")?;
+        let dst = match field {
+            NodeField::Position => &mut self.tissue.state.positions,
+            NodeField::Velocity => &mut self.tissue.state.velocities,
+            NodeField::Force => &mut self.tissue.state.forces,
+        };
+        dst[range].copy_from_slice(data);
+        Ok(())
+    }
+
+    fn write_neighbour_rows(&mut self, first: usize, index: &[u32], weight: &[f32]) -> Result<(), SimError> {
+        let k = self.tissue.neighbours.k;
+        if index.len() % k != 0 || weight.len() != index.len() {
+            return Err(SimError::BadRowLength {
+                k,
+                len: index.len().max(weight.len()),
+            });
+        }
+        let rows = first..first + index.len() / k;
+        check_range(&rows, self.capacity(), "allocated")?;
+        let nb = &mut self.tissue.neighbours;
+        nb.index[first * k..rows.end * k].copy_from_slice(index);
+        nb.weight[first * k..rows.end * k].copy_from_slice(weight);
+        Ok(())
+    }
+}

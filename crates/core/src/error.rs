@@ -1,0 +1,155 @@
+//! Typed errors of the core crate. Every variant names what was wrong: the key of a scene
+//! file, the file and line of a mesh, the node or the step of a simulation.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// A scene that cannot be read or does not make sense.
+#[derive(Debug, Error)]
+pub enum SceneError {
+    /// The scene file could not be read.
+    #[error("cannot read scene file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// TOML syntax error, unknown key, missing key or a value of the wrong type. The message
+    /// of the TOML parser names the key and the line.
+    #[error("scene {origin}: {message}")]
+    Parse {
+        /// Where the scene came from (a path or `<string>`).
+        origin: String,
+        /// The parser's message, which names the key.
+        message: String,
+    },
+    /// A value has the right type but is out of its valid range.
+    #[error("scene key `{key}`: {reason}")]
+    InvalidValue {
+        /// Dotted path of the key, e.g. `material.stiffness`.
+        key: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The tissue geometry could not be built.
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+}
+
+impl SceneError {
+    pub(crate) fn invalid(key: impl Into<String>, reason: impl Into<String>) -> Self {
+        SceneError::InvalidValue {
+            key: key.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// A surface mesh that cannot be used as tissue boundary.
+#[derive(Debug, Error)]
+pub enum GeometryError {
+    /// The OBJ file could not be loaded.
+    #[error("cannot load OBJ file {path}: {message}")]
+    ObjLoad {
+        /// The file.
+        path: PathBuf,
+        /// The loader's message.
+        message: String,
+    },
+    /// The OBJ file holds no triangle.
+    #[error("OBJ file {path} contains no triangles")]
+    Empty {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A vertex coordinate is NaN or infinite.
+    #[error("OBJ file {path}: vertex {vertex} has a non-finite coordinate")]
+    NonFiniteVertex {
+        /// The file.
+        path: PathBuf,
+        /// Zero-based vertex index.
+        vertex: usize,
+    },
+    /// A triangle references the same vertex twice or has zero area.
+    #[error("OBJ file {path}: triangle {triangle} is degenerate (repeated vertex or zero area)")]
+    DegenerateTriangle {
+        /// The file.
+        path: PathBuf,
+        /// Zero-based triangle index.
+        triangle: usize,
+    },
+    /// An edge is used by only one triangle: the surface has a hole.
+    #[error("OBJ file {path}: surface is open, edge ({a}, {b}) belongs to only one triangle")]
+    OpenSurface {
+        /// The file.
+        path: PathBuf,
+        /// First vertex of the edge.
+        a: u32,
+        /// Second vertex of the edge.
+        b: u32,
+    },
+    /// An edge is used by more than two triangles, or twice in the same direction.
+    #[error(
+        "OBJ file {path}: surface is not manifold or not consistently oriented at edge ({a}, {b})"
+    )]
+    NonManifold {
+        /// The file.
+        path: PathBuf,
+        /// First vertex of the edge.
+        a: u32,
+        /// Second vertex of the edge.
+        b: u32,
+    },
+    /// The closed surface encloses no volume (or is inside out).
+    #[error("surface {path} encloses a non-positive volume ({volume} m^3): inside out or flat")]
+    NonPositiveVolume {
+        /// The file.
+        path: PathBuf,
+        /// Signed volume.
+        volume: f64,
+    },
+    /// Sampling produced too few nodes for the requested neighbour count.
+    #[error("geometry has {nodes} nodes but {needed} are needed (neighbour count + 1)")]
+    TooFewNodes {
+        /// Nodes produced.
+        nodes: usize,
+        /// Nodes needed.
+        needed: usize,
+    },
+}
+
+/// An error while simulating.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SimError {
+    /// A position or velocity became NaN or infinite: the simulation diverged.
+    #[error("simulation diverged at step {step}: node {node} has a non-finite {field}")]
+    Diverged {
+        /// Step counter when it was detected.
+        step: u64,
+        /// The first node found with a non-finite value.
+        node: usize,
+        /// `position` or `velocity`.
+        field: &'static str,
+    },
+    /// A node range outside the active or allocated nodes.
+    #[error("node range {start}..{end} is outside the {limit} {what} nodes")]
+    OutOfRange {
+        /// Range start.
+        start: usize,
+        /// Range end (exclusive).
+        end: usize,
+        /// The bound that was crossed.
+        limit: usize,
+        /// `active` or `allocated`.
+        what: &'static str,
+    },
+    /// A neighbour row write whose length is not a multiple of K.
+    #[error("neighbour rows must have {k} entries per node, got {len}")]
+    BadRowLength {
+        /// Neighbours per node.
+        k: usize,
+        /// Length given.
+        len: usize,
+    },
+}

@@ -1,0 +1,96 @@
+//! Tissue geometry: the rest positions of the nodes and the closed triangulated surface
+//! that bounds them (used for output and, later, for needle contact).
+//!
+//! Two sources: a box filled with a cubic lattice ([`box_lattice`]) and a closed OBJ
+//! surface whose inside is filled with a cubic lattice ([`obj`], [`sampling`]).
+
+pub mod box_lattice;
+pub mod obj;
+pub mod sampling;
+
+use crate::error::SceneError;
+use crate::scene::Geometry;
+
+/// Rest positions of the nodes and the surface triangles over them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeCloud {
+    /// Rest positions in metres.
+    pub positions: Vec<[f64; 3]>,
+    /// Surface triangles (node indices), counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    /// Volume enclosed by the surface in m^3.
+    pub volume: f64,
+}
+
+impl NodeCloud {
+    /// Axis-aligned bounds `(min, max)` of the nodes.
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        bounds(&self.positions)
+    }
+}
+
+/// Axis-aligned bounds of a point set (`(+inf, -inf)` when empty).
+pub fn bounds(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Builds the node cloud that a scene's geometry describes.
+pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeCloud, SceneError> {
+    match geometry {
+        Geometry::Box {
+            min,
+            max,
+            spacing,
+            nodes,
+        } => {
+            let lattice = match (spacing, nodes) {
+                (Some(h), _) => box_lattice::BoxLattice::with_spacing(*min, *max, *h),
+                (None, Some(n)) => box_lattice::BoxLattice::with_node_count(*min, *max, *n),
+                (None, None) => {
+                    return Err(SceneError::invalid(
+                        "tissue.geometry",
+                        "a box needs `spacing` or `nodes`",
+                    ))
+                }
+            };
+            Ok(lattice.cloud())
+        }
+        Geometry::Obj {
+            path,
+            spacing,
+            scale,
+        } => {
+            let full = if path.is_absolute() {
+                path.clone()
+            } else {
+                base_dir.join(path)
+            };
+            let surface = obj::load_closed_surface(&full, *scale)?;
+            Ok(sampling::fill_lattice(&surface, *spacing))
+        }
+    }
+}
+
+/// Signed volume enclosed by a closed, outward-oriented triangle surface (divergence
+/// theorem).
+pub fn signed_volume(vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|t| {
+            let a = vertices[t[0] as usize];
+            let b = vertices[t[1] as usize];
+            let c = vertices[t[2] as usize];
+            (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]))
+                / 6.0
+        })
+        .sum()
+}

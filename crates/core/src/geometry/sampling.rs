@@ -1,0 +1,154 @@
+//! Interior sampling of a closed surface.
+//!
+//! The surface vertices become nodes; the inside is filled with a cubic lattice of spacing
+//! `h` (centred on the surface's bounding box). A lattice point is kept when its
+//! generalised winding number (sum of the triangles' solid angles over 4 pi, van Oosterom
+//! and Strackee 1983) exceeds 1/2 and it lies at least `h / 2` from the surface, so no
+//! interior node crowds a surface vertex. Cost: lattice points times triangles; fine for
+//! the meshes of a needle-insertion scene (a few thousand triangles).
+
+use super::obj::Surface;
+use super::NodeCloud;
+
+/// Surface vertices plus the interior lattice points.
+pub fn fill_lattice(surface: &Surface, h: f64) -> NodeCloud {
+    let (lo, hi) = super::bounds(&surface.vertices);
+    let mut positions = surface.vertices.clone();
+    let dims: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / h).floor() as usize + 1);
+    let origin: [f64; 3] =
+        std::array::from_fn(|a| lo[a] + 0.5 * ((hi[a] - lo[a]) - (dims[a] - 1) as f64 * h));
+    let tris: Vec<[[f64; 3]; 3]> = surface
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| surface.vertices[i as usize]))
+        .collect();
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let p = [
+                    origin[0] + i as f64 * h,
+                    origin[1] + j as f64 * h,
+                    origin[2] + k as f64 * h,
+                ];
+                if winding_number(p, &tris) > 0.5 && distance_to_triangles(p, &tris) >= 0.5 * h {
+                    positions.push(p);
+                }
+            }
+        }
+    }
+    NodeCloud {
+        positions,
+        triangles: surface.triangles.clone(),
+        volume: surface.volume,
+    }
+}
+
+/// Generalised winding number of `p` with respect to a closed triangle surface: 1 inside,
+/// 0 outside.
+pub fn winding_number(p: [f64; 3], triangles: &[[[f64; 3]; 3]]) -> f64 {
+    let mut total = 0.0;
+    for t in triangles {
+        let a = sub(t[0], p);
+        let b = sub(t[1], p);
+        let c = sub(t[2], p);
+        let (la, lb, lc) = (len(a), len(b), len(c));
+        let num = dot(a, cross(b, c));
+        let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+        total += 2.0 * num.atan2(den);
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
+/// Distance from `p` to the nearest point of any triangle.
+pub fn distance_to_triangles(p: [f64; 3], triangles: &[[[f64; 3]; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|t| len(sub(p, closest_point_on_triangle(p, t))))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Closest point of triangle `t` to `p` (Voronoi regions of vertices, edges and face).
+pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
+    let [a, b, c] = *t;
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return add(a, scale(ab, v));
+    }
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return add(a, scale(ac, w));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return add(b, scale(sub(c, b), w));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    add(a, add(scale(ab, v), scale(ac, w)))
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn len(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::box_lattice::BoxLattice;
+
+    #[test]
+    fn winding_number_is_one_inside_zero_outside() {
+        let c = BoxLattice::with_spacing([0.0; 3], [1.0; 3], 0.5).cloud();
+        let tris: Vec<_> = c
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| c.positions[i as usize]))
+            .collect();
+        assert!((winding_number([0.3, 0.4, 0.6], &tris) - 1.0).abs() < 1e-9);
+        assert!(winding_number([1.3, 0.4, 0.6], &tris).abs() < 1e-9);
+        assert!((distance_to_triangles([0.5, 0.5, 0.9], &tris) - 0.1).abs() < 1e-12);
+    }
+}

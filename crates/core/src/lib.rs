@@ -1,0 +1,36 @@
+//! # needlesim-core
+//!
+//! The CPU side of needlesim: scenes (TOML), tissue geometry (generated boxes, OBJ
+//! surfaces filled with nodes), neighbour lists, node state, the tissue models, the
+//! integrator, the [`Backend`] trait and the CPU backend.
+//!
+//! ```no_run
+//! use needlesim_core::{Backend, CpuBackend, Scene, Threading, Tissue};
+//! let scene = Scene::from_file("scenes/cube_lshm.toml")?;
+//! let tissue = Tissue::from_scene(&scene)?;
+//! let mut backend = CpuBackend::new(tissue, Threading::Parallel)?;
+//! backend.step(100);
+//! backend.check_finite()?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![warn(missing_docs)]
+
+pub mod backend;
+pub mod cpu;
+pub mod error;
+pub mod geometry;
+pub mod integrator;
+pub mod math;
+pub mod models;
+pub mod neighbours;
+pub mod scene;
+pub mod state;
+pub mod tissue;
+
+pub use backend::{Backend, NodeField};
+pub use cpu::{CpuBackend, Threading};
+pub use error::{GeometryError, SceneError, SimError};
+pub use math::Vec4;
+pub use scene::{Material, Scene};
+pub use tissue::Tissue;

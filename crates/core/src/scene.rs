@@ -1,0 +1,524 @@
+//! Scene description, read from TOML.
+//!
+//! A scene says what tissue to build (geometry, material model, density, neighbours),
+//! how to step it (time step, gravity, damping, fixed nodes, initial deformation) and what
+//! to write. Every table rejects unknown keys, and [`Scene::validate`] rejects values out
+//! of range with an error that names the dotted key. Lengths are metres, masses kilograms,
+//! times seconds.
+//!
+//! ```toml
+//! [tissue]
+//! density = 1000.0
+//! neighbours = 16
+//! geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 639 }
+//!
+//! [material]
+//! model = "local_shape_matching"
+//! stiffness = 20.0
+//!
+//! [physics]
+//! dt = 1e-3
+//! gravity = [0.0, -9.81, 0.0]
+//! damping = 5.0
+//!
+//! [[fixed]]
+//! axis = "x"
+//! below = 0.001
+//! ```
+
+use crate::error::SceneError;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A complete scene.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Free text shown by the CLI.
+    #[serde(default)]
+    pub name: String,
+    /// Which backend runs the scene.
+    #[serde(default)]
+    pub backend: BackendChoice,
+    /// The tissue: geometry, density and neighbourhoods.
+    pub tissue: Tissue,
+    /// The material model and its parameters.
+    pub material: Material,
+    /// Time step, gravity and damping.
+    #[serde(default)]
+    pub physics: Physics,
+    /// Node selections that are held fixed.
+    #[serde(default)]
+    pub fixed: Vec<FixedSelection>,
+    /// Initial deformation applied to the rest shape at the start.
+    #[serde(default)]
+    pub initial: Initial,
+    /// How long to run and what to write.
+    #[serde(default)]
+    pub run: RunSettings,
+    /// Directory that relative paths in the scene are resolved against (the scene file's
+    /// directory); not read from the file.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+/// Which backend steps the tissue.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum BackendChoice {
+    /// One CPU thread.
+    Cpu,
+    /// All CPU threads (rayon); the default.
+    #[default]
+    CpuParallel,
+}
+
+/// Tissue geometry and discretisation.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Tissue {
+    /// Where the nodes come from.
+    pub geometry: Geometry,
+    /// Mass density in kg/m^3; the total mass density * volume is shared equally by the
+    /// nodes.
+    #[serde(default = "default_density")]
+    pub density: f64,
+    /// Neighbour slots per node (K).
+    #[serde(default = "default_neighbours")]
+    pub neighbours: usize,
+    /// Weight kernel of a neighbour pair.
+    #[serde(default)]
+    pub weight: WeightKernel,
+}
+
+fn default_density() -> f64 {
+    1000.0
+}
+fn default_neighbours() -> usize {
+    16
+}
+
+/// The source of the tissue nodes.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Geometry {
+    /// An axis-aligned box filled with a cubic lattice. Give either `spacing` or a target
+    /// node count `nodes`; with `nodes`, the lattice spacing is uniform and the lattice may
+    /// fall short of `max` by less than one spacing along some axes (it stays centred).
+    Box {
+        /// Lower corner.
+        min: [f64; 3],
+        /// Upper corner.
+        max: [f64; 3],
+        /// Lattice spacing in metres.
+        spacing: Option<f64>,
+        /// Target node count (the result is within a few percent).
+        nodes: Option<usize>,
+    },
+    /// A closed triangulated surface (Wavefront OBJ). Surface vertices become nodes and the
+    /// inside is filled with a cubic lattice of the given spacing.
+    Obj {
+        /// Path to the OBJ file, relative to the scene file.
+        path: PathBuf,
+        /// Interior lattice spacing in metres (after scaling).
+        spacing: f64,
+        /// Factor applied to the file's coordinates (e.g. 0.001 for millimetres).
+        #[serde(default = "one")]
+        scale: f64,
+    },
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Weight of a neighbour pair as a function of its rest distance.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(tag = "kernel", rename_all = "snake_case", deny_unknown_fields)]
+pub enum WeightKernel {
+    /// Every neighbour weighs 1 (the paper's plain averages).
+    Uniform,
+    /// `w = (1 - r^2/h^2)^3` with `h = support * (d_K(i) + d_K(j)) / 2`, where `d_K` is the
+    /// distance of a node to its K-th nearest neighbour; `support > 1` keeps every mutual
+    /// neighbour's weight positive.
+    Poly6 {
+        /// Support radius in units of the K-th neighbour distance.
+        #[serde(default = "default_support")]
+        support: f64,
+    },
+}
+
+fn default_support() -> f64 {
+    2.0
+}
+
+impl Default for WeightKernel {
+    fn default() -> Self {
+        WeightKernel::Poly6 {
+            support: default_support(),
+        }
+    }
+}
+
+/// The tissue model and its parameters.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Material {
+    /// Weighted mass-spring model: one spring per neighbour pair.
+    MassSpring {
+        /// Spring stiffness k in N/m (scaled by the pair weight).
+        stiffness: f64,
+        /// Spring damping along the spring in N s/m (scaled by the pair weight).
+        #[serde(default)]
+        spring_damping: f64,
+    },
+    /// Local shape matching (paper section 3): one cluster per node.
+    LocalShapeMatching {
+        /// Restoring stiffness k_s in N/m of `f = k_s (g - x)`.
+        stiffness: f64,
+        /// Most quaternion iterations per step of the rotation extraction (warm started).
+        #[serde(default = "default_rotation_iterations")]
+        rotation_iterations: u32,
+        /// Which nodes a cluster pulls: `node` (the paper) or `cluster` (conservative).
+        #[serde(default)]
+        forces: ShapeMatchingForces,
+    },
+}
+
+/// Which nodes a shape matching cluster acts on.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeMatchingForces {
+    /// Only its own node, `f_i = k_s (g_i - x_i)` (paper equation 1). Not conservative:
+    /// needs velocity damping to stay stable at high stiffness.
+    #[default]
+    Node,
+    /// All its members towards their goals: the gradient of the shape matching energy,
+    /// conservative and momentum-conserving.
+    Cluster,
+}
+
+fn default_rotation_iterations() -> u32 {
+    8
+}
+
+impl Material {
+    /// The model's short name as used in file names and tables.
+    pub fn short_name(&self) -> &'static str {
+        match self {
+            Material::MassSpring { .. } => "msm",
+            Material::LocalShapeMatching { .. } => "lshm",
+        }
+    }
+}
+
+/// Time stepping parameters.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Physics {
+    /// Time step in seconds.
+    #[serde(default = "default_dt")]
+    pub dt: f64,
+    /// Gravity in m/s^2.
+    #[serde(default)]
+    pub gravity: [f64; 3],
+    /// Mass-proportional velocity damping c in 1/s: `v <- (v + dt a) / (1 + dt c)`.
+    #[serde(default)]
+    pub damping: f64,
+}
+
+fn default_dt() -> f64 {
+    1e-3
+}
+
+impl Default for Physics {
+    fn default() -> Self {
+        Physics {
+            dt: default_dt(),
+            gravity: [0.0; 3],
+            damping: 0.0,
+        }
+    }
+}
+
+/// An axis of the scene frame.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Axis {
+    /// x
+    X,
+    /// y
+    Y,
+    /// z
+    Z,
+}
+
+impl Axis {
+    /// 0, 1 or 2.
+    pub fn index(self) -> usize {
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+}
+
+/// Fixes every node whose coordinate along `axis` is `<= below` or `>= above` (rest
+/// positions). Exactly one of the two is given.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FixedSelection {
+    /// The axis the plane is normal to.
+    pub axis: Axis,
+    /// Fix nodes at or below this coordinate.
+    pub below: Option<f64>,
+    /// Fix nodes at or above this coordinate.
+    pub above: Option<f64>,
+}
+
+impl FixedSelection {
+    /// Whether a rest position is selected.
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        let c = p[self.axis.index()];
+        match (self.below, self.above) {
+            (Some(b), _) => c <= b,
+            (None, Some(a)) => c >= a,
+            (None, None) => false,
+        }
+    }
+}
+
+/// Initial deformation of the rest shape.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Initial {
+    /// Scale factors along x, y, z about the centroid of the free nodes' rest positions
+    /// (`[1.3, 1, 1]` stretches by 30% along x). Fixed nodes are not moved.
+    #[serde(default = "unit_stretch")]
+    pub stretch: [f64; 3],
+}
+
+fn unit_stretch() -> [f64; 3] {
+    [1.0; 3]
+}
+
+impl Default for Initial {
+    fn default() -> Self {
+        Initial {
+            stretch: unit_stretch(),
+        }
+    }
+}
+
+/// Run length and output.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RunSettings {
+    /// Steps to run.
+    #[serde(default = "default_steps")]
+    pub steps: u64,
+    /// Write a frame (CSV row and surface mesh) every this many steps.
+    #[serde(default = "default_output_every")]
+    pub output_every: u64,
+    /// Write the surface mesh of every frame (VTK XML PolyData plus a .pvd time series).
+    #[serde(default = "yes")]
+    pub surface_frames: bool,
+}
+
+fn default_steps() -> u64 {
+    1000
+}
+fn default_output_every() -> u64 {
+    50
+}
+fn yes() -> bool {
+    true
+}
+
+impl Default for RunSettings {
+    fn default() -> Self {
+        RunSettings {
+            steps: default_steps(),
+            output_every: default_output_every(),
+            surface_frames: true,
+        }
+    }
+}
+
+impl Scene {
+    /// Parses and validates a scene from TOML text. Relative paths resolve against
+    /// `base_dir`.
+    pub fn from_toml_str(text: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+        Self::parse(text, "<string>", base_dir)
+    }
+
+    /// Reads, parses and validates a scene file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        Self::parse(&text, &path.display().to_string(), &base)
+    }
+
+    fn parse(text: &str, origin: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+        let mut scene: Scene = toml::from_str(text).map_err(|e| SceneError::Parse {
+            origin: origin.to_string(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        scene.base_dir = base_dir.to_path_buf();
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Checks every value's range. Called by the parsers; call it again after editing a
+    /// scene in code.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let t = &self.tissue;
+        positive_finite("tissue.density", t.density)?;
+        if !(1..=64).contains(&t.neighbours) {
+            return Err(SceneError::invalid(
+                "tissue.neighbours",
+                format!("must be between 1 and 64, got {}", t.neighbours),
+            ));
+        }
+        if let WeightKernel::Poly6 { support } = t.weight {
+            if !(support.is_finite() && support > 1.0) {
+                return Err(SceneError::invalid(
+                    "tissue.weight.support",
+                    format!("must be a finite number > 1, got {support}"),
+                ));
+            }
+        }
+        match &t.geometry {
+            Geometry::Box {
+                min,
+                max,
+                spacing,
+                nodes,
+            } => {
+                for a in 0..3 {
+                    finite("tissue.geometry.min", min[a])?;
+                    finite("tissue.geometry.max", max[a])?;
+                    if max[a] <= min[a] {
+                        return Err(SceneError::invalid(
+                            "tissue.geometry.max",
+                            format!("must exceed min along every axis (axis {a}: {} <= {})", max[a], min[a]),
+                        ));
+                    }
+                }
+                match (spacing, nodes) {
+                    (Some(h), None) => {
+                        positive_finite("tissue.geometry.spacing", *h)?;
+                        let shortest = (0..3).map(|a| max[a] - min[a]).fold(f64::MAX, f64::min);
+                        if *h > shortest {
+                            return Err(SceneError::invalid(
+                                "tissue.geometry.spacing",
+                                format!("{h} m is larger than the box's shortest side {shortest} m"),
+                            ));
+                        }
+                        let count: f64 = (0..3).map(|a| ((max[a] - min[a]) / h).floor() + 1.0).product();
+                        if count > 5.0e7 {
+                            return Err(SceneError::invalid(
+                                "tissue.geometry.spacing",
+                                format!("{h} m gives {count:.0} nodes, more than the 50 million supported"),
+                            ));
+                        }
+                    }
+                    (None, Some(n)) => {
+                        if *n < 8 || *n > 50_000_000 {
+                            return Err(SceneError::invalid(
+                                "tissue.geometry.nodes",
+                                format!("must be between 8 and 50000000, got {n}"),
+                            ));
+                        }
+                    }
+                    _ => {
+                        return Err(SceneError::invalid(
+                            "tissue.geometry",
+                            "a box needs exactly one of `spacing` and `nodes`",
+                        ))
+                    }
+                }
+            }
+            Geometry::Obj { spacing, scale, .. } => {
+                positive_finite("tissue.geometry.spacing", *spacing)?;
+                positive_finite("tissue.geometry.scale", *scale)?;
+            }
+        }
+        match self.material {
+            Material::MassSpring {
+                stiffness,
+                spring_damping,
+            } => {
+                positive_finite("material.stiffness", stiffness)?;
+                non_negative_finite("material.spring_damping", spring_damping)?;
+            }
+            Material::LocalShapeMatching {
+                stiffness,
+                rotation_iterations,
+                ..
+            } => {
+                positive_finite("material.stiffness", stiffness)?;
+                if rotation_iterations == 0 || rotation_iterations > 100 {
+                    return Err(SceneError::invalid(
+                        "material.rotation_iterations",
+                        format!("must be between 1 and 100, got {rotation_iterations}"),
+                    ));
+                }
+            }
+        }
+        let p = &self.physics;
+        positive_finite("physics.dt", p.dt)?;
+        for g in p.gravity {
+            finite("physics.gravity", g)?;
+        }
+        non_negative_finite("physics.damping", p.damping)?;
+        for (i, f) in self.fixed.iter().enumerate() {
+            let key = format!("fixed[{i}]");
+            match (f.below, f.above) {
+                (Some(v), None) | (None, Some(v)) => finite(&key, v)?,
+                _ => {
+                    return Err(SceneError::invalid(
+                        key,
+                        "give exactly one of `below` and `above`",
+                    ))
+                }
+            }
+        }
+        for s in self.initial.stretch {
+            positive_finite("initial.stretch", s)?;
+        }
+        if self.run.output_every == 0 {
+            return Err(SceneError::invalid("run.output_every", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+fn finite(key: &str, v: f64) -> Result<(), SceneError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(SceneError::invalid(key, format!("must be finite, got {v}")))
+    }
+}
+
+fn positive_finite(key: &str, v: f64) -> Result<(), SceneError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(SceneError::invalid(key, format!("must be a finite number > 0, got {v}")))
+    }
+}
+
+fn non_negative_finite(key: &str, v: f64) -> Result<(), SceneError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(SceneError::invalid(key, format!("must be a finite number >= 0, got {v}")))
+    }
+}

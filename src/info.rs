@@ -1,0 +1,98 @@
+//! What a scene builds: node counts, neighbour statistics and the bytes of every array.
+
+use needlesim_core::models::ArrayInfo;
+use needlesim_core::neighbours::NeighbourStats;
+use needlesim_core::{Scene, SceneError, Tissue};
+use std::fmt;
+
+/// Summary of a built scene.
+#[derive(Debug, Clone)]
+pub struct SceneInfo {
+    /// Scene name.
+    pub name: String,
+    /// Model short name.
+    pub model: &'static str,
+    /// Mesh nodes.
+    pub nodes: usize,
+    /// Allocated node slots.
+    pub capacity: usize,
+    /// Fixed nodes.
+    pub fixed: usize,
+    /// Surface triangles.
+    pub triangles: usize,
+    /// Node bounds (min, max) in m.
+    pub bounds: ([f64; 3], [f64; 3]),
+    /// Mass per node in kg.
+    pub node_mass: f64,
+    /// Volume in m^3.
+    pub volume: f64,
+    /// Neighbour slots per node.
+    pub k: usize,
+    /// Neighbour statistics.
+    pub neighbours: NeighbourStats,
+    /// Every simulation array.
+    pub arrays: Vec<ArrayInfo>,
+}
+
+impl SceneInfo {
+    /// Builds the scene's tissue and summarises it.
+    pub fn of(scene: &Scene) -> Result<SceneInfo, SceneError> {
+        let t = Tissue::from_scene(scene)?;
+        Ok(Self::of_tissue(scene, &t))
+    }
+
+    /// Summarises an already built tissue.
+    pub fn of_tissue(scene: &Scene, t: &Tissue) -> SceneInfo {
+        let n = t.n_mesh;
+        let rest: Vec<[f64; 3]> = t.state.positions[..n]
+            .iter()
+            .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+            .collect();
+        SceneInfo {
+            name: scene.name.clone(),
+            model: scene.material.short_name(),
+            nodes: n,
+            capacity: t.state.capacity(),
+            fixed: t.n_fixed,
+            triangles: t.triangles.len(),
+            bounds: needlesim_core::geometry::bounds(&rest),
+            node_mass: t.node_mass,
+            volume: t.volume,
+            k: t.neighbours.k,
+            neighbours: t.neighbours.stats(n),
+            arrays: t.allocations(),
+        }
+    }
+
+    /// Total bytes of all arrays.
+    pub fn total_bytes(&self) -> usize {
+        self.arrays.iter().map(|a| a.bytes).sum()
+    }
+}
+
+impl fmt::Display for SceneInfo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (lo, hi) = self.bounds;
+        writeln!(f, "scene      {}", if self.name.is_empty() { "(unnamed)" } else { &self.name })?;
+        writeln!(f, "model      {}", self.model)?;
+        writeln!(f, "nodes      {} (capacity {}, fixed {})", self.nodes, self.capacity, self.fixed)?;
+        writeln!(f, "surface    {} triangles", self.triangles)?;
+        writeln!(
+            f,
+            "bounds     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}] m",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        )?;
+        writeln!(f, "volume     {:.4e} m^3, node mass {:.4e} kg", self.volume, self.node_mass)?;
+        let s = &self.neighbours;
+        writeln!(
+            f,
+            "neighbours K = {}: live per node min {} mean {:.2} max {}, {} broken (non-mutual) slots, min weight {:.3}",
+            self.k, s.min, s.mean, s.max, s.broken, s.min_weight
+        )?;
+        writeln!(f, "arrays")?;
+        for a in &self.arrays {
+            writeln!(f, "  {:<18} {:>12} bytes", a.name, a.bytes)?;
+        }
+        write!(f, "  {:<18} {:>12} bytes", "total", self.total_bytes())
+    }
+}

@@ -1,0 +1,148 @@
+//! Output files: per-frame metrics as CSV, and the tissue surface of every frame as VTK XML
+//! PolyData (`.vtp`, ASCII) with a ParaView collection (`surface.pvd`) that orders the
+//! frames in time. Point data: displacement from rest in metres.
+
+use crate::runner::FrameMetrics;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// Writes `frames.csv`.
+pub struct CsvWriter {
+    path: PathBuf,
+    out: BufWriter<File>,
+}
+
+/// Column names of `frames.csv`.
+pub const CSV_HEADER: &str =
+    "frame,step,time_s,kinetic_energy_j,max_displacement_m,mean_displacement_m,max_speed_m_s,max_force_n";
+
+impl CsvWriter {
+    /// Creates the file and writes the header.
+    pub fn create(path: &Path) -> std::io::Result<CsvWriter> {
+        let mut out = BufWriter::new(File::create(path)?);
+        writeln!(out, "{CSV_HEADER}")?;
+        Ok(CsvWriter {
+            path: path.to_path_buf(),
+            out,
+        })
+    }
+
+    /// Appends one frame.
+    pub fn row(&mut self, m: &FrameMetrics) -> std::io::Result<()> {
+        writeln!(
+            self.out,
+            "{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e}",
+            m.frame, m.step, m.time, m.kinetic_energy, m.max_displacement, m.mean_displacement, m.max_speed, m.max_force
+        )
+    }
+
+    /// Flushes and returns the path.
+    pub fn finish(mut self) -> std::io::Result<PathBuf> {
+        self.out.flush()?;
+        Ok(self.path)
+    }
+}
+
+/// Writes `surface/surface_NNNNN.vtp` per frame and `surface.pvd`.
+pub struct SurfaceWriter {
+    dir: PathBuf,
+    /// Node index of each surface point.
+    points: Vec<u32>,
+    /// Triangles in surface-point indices.
+    triangles: Vec<[u32; 3]>,
+    frames: Vec<(f64, String)>,
+}
+
+impl SurfaceWriter {
+    /// Prepares the writer for the given surface triangles (node indices).
+    pub fn new(out_dir: &Path, triangles: &[[u32; 3]]) -> std::io::Result<SurfaceWriter> {
+        let dir = out_dir.join("surface");
+        std::fs::create_dir_all(&dir)?;
+        let mut map = std::collections::HashMap::new();
+        let mut points = Vec::new();
+        let triangles = triangles
+            .iter()
+            .map(|t| {
+                t.map(|i| {
+                    *map.entry(i).or_insert_with(|| {
+                        points.push(i);
+                        (points.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
+        Ok(SurfaceWriter {
+            dir: out_dir.to_path_buf(),
+            points,
+            triangles,
+            frames: Vec::new(),
+        })
+    }
+
+    /// Writes one frame.
+    pub fn frame(&mut self, time: f64, pos: &[[f32; 4]], rest: &[[f64; 3]]) -> std::io::Result<()> {
+        let name = format!("surface/surface_{:05}.vtp", self.frames.len());
+        let mut out = BufWriter::new(File::create(self.dir.join(&name))?);
+        writeln!(out, r#"<?xml version="1.0"?>"#)?;
+        writeln!(out, r#"<VTKFile type="PolyData" version="0.1" byte_order="LittleEndian">"#)?;
+        writeln!(out, "<PolyData>")?;
+        writeln!(
+            out,
+            r#"<Piece NumberOfPoints="{}" NumberOfVerts="0" NumberOfLines="0" NumberOfStrips="0" NumberOfPolys="{}">"#,
+            self.points.len(),
+            self.triangles.len()
+        )?;
+        writeln!(out, r#"<Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">"#)?;
+        for &i in &self.points {
+            let p = pos[i as usize];
+            writeln!(out, "{} {} {}", p[0], p[1], p[2])?;
+        }
+        writeln!(out, "</DataArray></Points>")?;
+        writeln!(out, r#"<PointData Vectors="displacement">"#)?;
+        writeln!(out, r#"<DataArray type="Float32" Name="displacement" NumberOfComponents="3" format="ascii">"#)?;
+        for &i in &self.points {
+            let (p, r) = (pos[i as usize], rest[i as usize]);
+            writeln!(
+                out,
+                "{} {} {}",
+                (p[0] as f64 - r[0]) as f32,
+                (p[1] as f64 - r[1]) as f32,
+                (p[2] as f64 - r[2]) as f32
+            )?;
+        }
+        writeln!(out, "</DataArray></PointData>")?;
+        writeln!(out, "<Polys>")?;
+        writeln!(out, r#"<DataArray type="Int32" Name="connectivity" format="ascii">"#)?;
+        for t in &self.triangles {
+            writeln!(out, "{} {} {}", t[0], t[1], t[2])?;
+        }
+        writeln!(out, "</DataArray>")?;
+        writeln!(out, r#"<DataArray type="Int32" Name="offsets" format="ascii">"#)?;
+        for k in 1..=self.triangles.len() {
+            write!(out, "{} ", 3 * k)?;
+        }
+        writeln!(out, "\n</DataArray>")?;
+        writeln!(out, "</Polys>\n</Piece>\n</PolyData>\n</VTKFile>")?;
+        out.flush()?;
+        self.frames.push((time, name));
+        Ok(())
+    }
+
+    /// Writes `surface.pvd` and returns every path written.
+    pub fn finish(self) -> std::io::Result<Vec<PathBuf>> {
+        let pvd = self.dir.join("surface.pvd");
+        let mut out = BufWriter::new(File::create(&pvd)?);
+        writeln!(out, r#"<?xml version="1.0"?>"#)?;
+        writeln!(out, r#"<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">"#)?;
+        writeln!(out, "<Collection>")?;
+        for (t, name) in &self.frames {
+            writeln!(out, r#"<DataSet timestep="{t}" group="" part="0" file="{name}"/>"#)?;
+        }
+        writeln!(out, "</Collection>\n</VTKFile>")?;
+        out.flush()?;
+        let mut files = vec![pvd];
+        files.extend(self.frames.iter().map(|(_, n)| self.dir.join(n)));
+        Ok(files)
+    }
+}

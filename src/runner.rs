@@ -1,0 +1,228 @@
+//! Runs a scene: builds the tissue and a backend, steps it, and writes per-frame metrics
+//! (CSV) and surface meshes (VTK XML PolyData with a .pvd time series).
+
+use crate::output::{CsvWriter, SurfaceWriter};
+use needlesim_core::geometry;
+use needlesim_core::scene::BackendChoice;
+use needlesim_core::{Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// Why a run failed.
+#[derive(Debug, Error)]
+pub enum RunError {
+    /// The scene could not be built.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// The simulation failed (diverged).
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// An output file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The thread pool could not be created.
+    #[error(transparent)]
+    Threads(#[from] needlesim_core::cpu::ThreadPoolError),
+}
+
+/// Options of a run that are not part of the scene.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Output directory (created).
+    pub out_dir: PathBuf,
+    /// Overrides the scene's `run.steps`.
+    pub steps: Option<u64>,
+    /// Overrides the scene's backend: 1 = single-threaded CPU, n > 1 = n threads.
+    pub threads: Option<usize>,
+    /// Write output files (CSV and surface frames); off for benchmarks.
+    pub write_files: bool,
+}
+
+impl RunOptions {
+    /// Defaults: the scene's steps and backend, files written to `out_dir`.
+    pub fn new(out_dir: impl Into<PathBuf>) -> RunOptions {
+        RunOptions {
+            out_dir: out_dir.into(),
+            steps: None,
+            threads: None,
+            write_files: true,
+        }
+    }
+}
+
+/// Metrics of one output frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameMetrics {
+    /// Frame number.
+    pub frame: usize,
+    /// Steps taken.
+    pub step: u64,
+    /// Simulated time in s.
+    pub time: f64,
+    /// Kinetic energy in J.
+    pub kinetic_energy: f64,
+    /// Largest distance of a node from its rest position, in m.
+    pub max_displacement: f64,
+    /// Mean distance of the nodes from their rest positions, in m.
+    pub mean_displacement: f64,
+    /// Largest node speed in m/s.
+    pub max_speed: f64,
+    /// Largest elastic force on a node in N.
+    pub max_force: f64,
+}
+
+/// What a run did.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Backend name.
+    pub backend: String,
+    /// Active nodes.
+    pub nodes: usize,
+    /// Steps run.
+    pub steps: u64,
+    /// Wall time spent stepping (not building or writing).
+    pub step_time: Duration,
+    /// Wall time of the whole run.
+    pub total_time: Duration,
+    /// Metrics of every frame.
+    pub frames: Vec<FrameMetrics>,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+impl RunSummary {
+    /// Steps per second of stepping time.
+    pub fn steps_per_second(&self) -> f64 {
+        self.steps as f64 / self.step_time.as_secs_f64().max(1e-12)
+    }
+}
+
+/// The backend a scene asks for, with an optional thread-count override.
+pub fn make_backend(
+    scene: &Scene,
+    tissue: Tissue,
+    threads: Option<usize>,
+) -> Result<Box<dyn Backend>, RunError> {
+    let threading = match (threads, scene.backend) {
+        (Some(0), _) => Threading::Parallel,
+        (Some(1), _) => Threading::Single,
+        (Some(n), _) => Threading::Threads(n),
+        (None, BackendChoice::Cpu) => Threading::Single,
+        (None, BackendChoice::CpuParallel) => Threading::Parallel,
+    };
+    Ok(Box::new(CpuBackend::new(tissue, threading)?))
+}
+
+fn metrics(frame: usize, step: u64, dt: f64, pos: &[[f32; 4]], vel: &[[f32; 4]], force: &[[f32; 4]], rest: &[[f64; 3]]) -> FrameMetrics {
+    let mut m = FrameMetrics {
+        frame,
+        step,
+        time: step as f64 * dt,
+        kinetic_energy: 0.0,
+        max_displacement: 0.0,
+        mean_displacement: 0.0,
+        max_speed: 0.0,
+        max_force: 0.0,
+    };
+    let n = rest.len().min(pos.len());
+    for i in 0..pos.len() {
+        let sq = |v: [f32; 4]| (0..3).map(|a| (v[a] as f64).powi(2)).sum::<f64>();
+        let v2 = sq(vel[i]);
+        if pos[i][3] > 0.0 {
+            m.kinetic_energy += 0.5 * v2 / pos[i][3] as f64;
+        }
+        m.max_speed = m.max_speed.max(v2.sqrt());
+        m.max_force = m.max_force.max(sq(force[i]).sqrt());
+        if i < n {
+            let d = (0..3).map(|a| (pos[i][a] as f64 - rest[i][a]).powi(2)).sum::<f64>().sqrt();
+            m.max_displacement = m.max_displacement.max(d);
+            m.mean_displacement += d / n as f64;
+        }
+    }
+    m
+}
+
+/// Builds and runs a scene. `progress(steps_done, steps_total)` is called after every
+/// frame.
+pub fn run_scene(
+    scene: &Scene,
+    options: &RunOptions,
+    mut progress: impl FnMut(u64, u64),
+) -> Result<RunSummary, RunError> {
+    let start = Instant::now();
+    let cloud = geometry::build(&scene.tissue.geometry, &scene.base_dir)?;
+    let rest = cloud.positions.clone();
+    let tissue = Tissue::from_cloud(scene, cloud, 0)?;
+    let triangles = tissue.triangles.clone();
+    let dt = tissue.step.dt as f64;
+    let mut backend = make_backend(scene, tissue, options.threads)?;
+    let total = options.steps.unwrap_or(scene.run.steps);
+    let every = scene.run.output_every;
+    let n = backend.n_active();
+
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| RunError::Io { path, source }
+    };
+    let mut csv = None;
+    let mut surface = None;
+    if options.write_files {
+        std::fs::create_dir_all(&options.out_dir).map_err(io(&options.out_dir))?;
+        csv = Some(CsvWriter::create(&options.out_dir.join("frames.csv")).map_err(io(&options.out_dir))?);
+        if scene.run.surface_frames {
+            surface = Some(SurfaceWriter::new(&options.out_dir, &triangles).map_err(io(&options.out_dir))?);
+        }
+    }
+
+    let mut pos = vec![[0.0f32; 4]; n];
+    let mut vel = vec![[0.0f32; 4]; n];
+    let mut force = vec![[0.0f32; 4]; n];
+    let mut frames = Vec::new();
+    let mut step_time = Duration::ZERO;
+    let mut done = 0u64;
+    loop {
+        backend.check_finite()?;
+        backend.read(NodeField::Position, 0..n, &mut pos)?;
+        backend.read(NodeField::Velocity, 0..n, &mut vel)?;
+        backend.read(NodeField::Force, 0..n, &mut force)?;
+        let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
+        if let Some(w) = csv.as_mut() {
+            w.row(&m).map_err(io(&options.out_dir))?;
+        }
+        if let Some(w) = surface.as_mut() {
+            w.frame(m.time, &pos, &rest).map_err(io(&options.out_dir))?;
+        }
+        frames.push(m);
+        progress(done, total);
+        if done >= total {
+            break;
+        }
+        let chunk = every.min(total - done);
+        let t0 = Instant::now();
+        backend.step(chunk);
+        step_time += t0.elapsed();
+        done += chunk;
+    }
+    let mut files = Vec::new();
+    if let Some(w) = csv {
+        files.push(w.finish().map_err(io(&options.out_dir))?);
+    }
+    if let Some(w) = surface {
+        files.extend(w.finish().map_err(io(&options.out_dir))?);
+    }
+    Ok(RunSummary {
+        backend: backend.name(),
+        nodes: n,
+        steps: done,
+        step_time,
+        total_time: start.elapsed(),
+        frames,
+        files,
+    })
+}
