@@ -44,7 +44,8 @@ impl CsvWriter {
     }
 }
 
-/// Writes `surface/surface_NNNNN.vtp` per frame and `surface.pvd`.
+/// Writes `surface/surface_NNNNN.vtp` per frame and `surface.pvd` beside the `surface`
+/// folder.
 pub struct SurfaceWriter {
     dir: PathBuf,
     /// Node index of each surface point.

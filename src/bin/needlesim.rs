@@ -48,8 +48,17 @@ fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
     }
 }
 
-fn main() -> Result<()> {
-    let cli = Cli::parse();
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { scene } => {
             let (scene, _) = load(&scene)?;
@@ -96,7 +105,7 @@ fn main() -> Result<()> {
                 );
             }
             println!(
-                "output      {} ({} files: frames.csv, surface/surface.pvd for ParaView)",
+                "output      {} ({} files: frames.csv, surface.pvd for ParaView)",
                 out.display(),
                 summary.files.len()
             );

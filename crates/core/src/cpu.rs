@@ -7,7 +7,7 @@ use crate::error::SimError;
 use crate::integrator::integrate_node;
 use crate::math::Vec4;
 use crate::models::{local_shape_matching, mass_spring, ShapeInfo};
-use crate::scene::Material;
+use crate::scene::{MassSpringParams, Material, ShapeMatchingParams};
 use crate::tissue::Tissue;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -153,10 +153,10 @@ impl Backend for CpuBackend {
         let forces = &mut t.state.forces[..n];
         match (&t.material, &mut t.shape) {
             (
-                Material::MassSpring {
+                Material::MassSpring(MassSpringParams {
                     stiffness,
                     spring_damping,
-                },
+                }),
                 ShapeInfo::MassSpring { rest_length },
             ) => {
                 let (k, c) = (*stiffness as f32, *spring_damping as f32);
@@ -167,11 +167,11 @@ impl Backend for CpuBackend {
                 });
             }
             (
-                Material::LocalShapeMatching {
+                Material::LocalShapeMatching(ShapeMatchingParams {
                     stiffness,
                     rotation_iterations,
                     ..
-                },
+                }),
                 ShapeInfo::LocalShapeMatching {
                     rest_position,
                     shape_vector,

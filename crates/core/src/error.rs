@@ -110,12 +110,12 @@ pub enum GeometryError {
         volume: f64,
     },
     /// Sampling produced too few nodes for the requested neighbour count.
-    #[error("geometry has {nodes} nodes but {needed} are needed (neighbour count + 1)")]
+    #[error("geometry has {nodes} nodes, too few for `tissue.neighbours` = {neighbours} (needs at least {neighbours} + 1)")]
     TooFewNodes {
         /// Nodes produced.
         nodes: usize,
-        /// Nodes needed.
-        needed: usize,
+        /// Neighbours per node asked for.
+        neighbours: usize,
     },
 }
 

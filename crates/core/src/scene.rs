@@ -43,6 +43,7 @@ pub struct Scene {
     /// The tissue: geometry, density and neighbourhoods.
     pub tissue: Tissue,
     /// The material model and its parameters.
+    #[serde(deserialize_with = "de_material")]
     pub material: Material,
     /// Time step, gravity and damping.
     #[serde(default)]
@@ -78,6 +79,7 @@ pub enum BackendChoice {
 #[serde(deny_unknown_fields)]
 pub struct Tissue {
     /// Where the nodes come from.
+    #[serde(deserialize_with = "de_geometry")]
     pub geometry: Geometry,
     /// Mass density in kg/m^3; the total mass density * volume is shared equally by the
     /// nodes.
@@ -87,7 +89,7 @@ pub struct Tissue {
     #[serde(default = "default_neighbours")]
     pub neighbours: usize,
     /// Weight kernel of a neighbour pair.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "de_weight")]
     pub weight: WeightKernel,
 }
 
@@ -98,55 +100,74 @@ fn default_neighbours() -> usize {
     16
 }
 
-/// The source of the tissue nodes.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+/// The source of the tissue nodes, chosen by the key `kind`.
+#[derive(Debug, Clone, PartialEq)]
 pub enum Geometry {
-    /// An axis-aligned box filled with a cubic lattice. Give either `spacing` or a target
-    /// node count `nodes`; with `nodes`, the lattice spacing is uniform and the lattice may
-    /// fall short of `max` by less than one spacing along some axes (it stays centred).
-    Box {
-        /// Lower corner.
-        min: [f64; 3],
-        /// Upper corner.
-        max: [f64; 3],
-        /// Lattice spacing in metres.
-        spacing: Option<f64>,
-        /// Target node count (the result is within a few percent).
-        nodes: Option<usize>,
-    },
-    /// A closed triangulated surface (Wavefront OBJ). Surface vertices become nodes and the
-    /// inside is filled with a cubic lattice of the given spacing.
-    Obj {
-        /// Path to the OBJ file, relative to the scene file.
-        path: PathBuf,
-        /// Interior lattice spacing in metres (after scaling).
-        spacing: f64,
-        /// Factor applied to the file's coordinates (e.g. 0.001 for millimetres).
-        #[serde(default = "one")]
-        scale: f64,
-    },
+    /// `kind = "box"`.
+    Box(BoxGeometry),
+    /// `kind = "obj"`.
+    Obj(ObjGeometry),
+}
+
+/// An axis-aligned box filled with a cubic lattice. Give either `spacing` or a target node
+/// count `nodes`; with `nodes`, the lattice spacing is uniform and the lattice may fall
+/// short of `max` by less than one spacing along some axes (it stays centred).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BoxGeometry {
+    /// Lower corner.
+    pub min: [f64; 3],
+    /// Upper corner.
+    pub max: [f64; 3],
+    /// Lattice spacing in metres.
+    pub spacing: Option<f64>,
+    /// Target node count (the result is within a few percent).
+    pub nodes: Option<usize>,
+}
+
+/// A closed triangulated surface (Wavefront OBJ). Surface vertices become nodes and the
+/// inside is filled with a cubic lattice of the given spacing.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ObjGeometry {
+    /// Path to the OBJ file, relative to the scene file.
+    pub path: PathBuf,
+    /// Interior lattice spacing in metres (after scaling).
+    pub spacing: f64,
+    /// Factor applied to the file's coordinates (e.g. 0.001 for millimetres).
+    #[serde(default = "one")]
+    pub scale: f64,
 }
 
 fn one() -> f64 {
     1.0
 }
 
-/// Weight of a neighbour pair as a function of its rest distance.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(tag = "kernel", rename_all = "snake_case", deny_unknown_fields)]
+/// Weight of a neighbour pair as a function of its rest distance, chosen by the key
+/// `kernel`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WeightKernel {
-    /// Every neighbour weighs 1 (the paper's plain averages).
+    /// `kernel = "uniform"`: every neighbour weighs 1 (the paper's plain averages).
     Uniform,
-    /// `w = (1 - r^2/h^2)^3` with `h = support * (d_K(i) + d_K(j)) / 2`, where `d_K` is the
-    /// distance of a node to its K-th nearest neighbour; `support > 1` keeps every mutual
-    /// neighbour's weight positive.
+    /// `kernel = "poly6"`: `w = (1 - r^2/h^2)^3` with `h = support * (d_K(i) + d_K(j)) / 2`,
+    /// where `d_K` is the distance of a node to its K-th nearest neighbour; `support > 1`
+    /// keeps every mutual neighbour's weight positive.
     Poly6 {
-        /// Support radius in units of the K-th neighbour distance.
-        #[serde(default = "default_support")]
+        /// Support radius in units of the K-th neighbour distance (default 2).
         support: f64,
     },
 }
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Poly6Params {
+    #[serde(default = "default_support")]
+    support: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoParams {}
 
 fn default_support() -> f64 {
     2.0
@@ -160,29 +181,38 @@ impl Default for WeightKernel {
     }
 }
 
-/// The tissue model and its parameters.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
+/// The tissue model and its parameters, chosen by the key `model`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Material {
-    /// Weighted mass-spring model: one spring per neighbour pair.
-    MassSpring {
-        /// Spring stiffness k in N/m (scaled by the pair weight).
-        stiffness: f64,
-        /// Spring damping along the spring in N s/m (scaled by the pair weight).
-        #[serde(default)]
-        spring_damping: f64,
-    },
-    /// Local shape matching (paper section 3): one cluster per node.
-    LocalShapeMatching {
-        /// Restoring stiffness k_s in N/m of `f = k_s (g - x)`.
-        stiffness: f64,
-        /// Most quaternion iterations per step of the rotation extraction (warm started).
-        #[serde(default = "default_rotation_iterations")]
-        rotation_iterations: u32,
-        /// Which nodes a cluster pulls: `node` (the paper) or `cluster` (conservative).
-        #[serde(default)]
-        forces: ShapeMatchingForces,
-    },
+    /// `model = "mass_spring"`: weighted mass-spring model, one spring per neighbour pair.
+    MassSpring(MassSpringParams),
+    /// `model = "local_shape_matching"`: one cluster per node (paper section 3).
+    LocalShapeMatching(ShapeMatchingParams),
+}
+
+/// Parameters of the weighted mass-spring model.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MassSpringParams {
+    /// Spring stiffness k in N/m (scaled by the pair weight).
+    pub stiffness: f64,
+    /// Spring damping along the spring in N s/m (scaled by the pair weight).
+    #[serde(default)]
+    pub spring_damping: f64,
+}
+
+/// Parameters of local shape matching.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeMatchingParams {
+    /// Restoring stiffness k_s in N/m of `f = k_s (g - x)`.
+    pub stiffness: f64,
+    /// Most quaternion iterations per step of the rotation extraction (warm started).
+    #[serde(default = "default_rotation_iterations")]
+    pub rotation_iterations: u32,
+    /// Which nodes a cluster pulls: `node` (the paper) or `cluster` (conservative).
+    #[serde(default)]
+    pub forces: ShapeMatchingForces,
 }
 
 /// Which nodes a shape matching cluster acts on.
@@ -206,8 +236,8 @@ impl Material {
     /// The model's short name as used in file names and tables.
     pub fn short_name(&self) -> &'static str {
         match self {
-            Material::MassSpring { .. } => "msm",
-            Material::LocalShapeMatching { .. } => "lshm",
+            Material::MassSpring(_) => "msm",
+            Material::LocalShapeMatching(_) => "lshm",
         }
     }
 }
@@ -346,6 +376,54 @@ impl Default for RunSettings {
     }
 }
 
+/// Deserialises a table whose key `tag` selects the variant; the rest of the table is
+/// read by `pick(variant_name, rest)`. Errors name the table, the variant and the key.
+fn de_tagged<'de, D, T>(
+    d: D,
+    table: &str,
+    tag: &str,
+    pick: impl FnOnce(&str, toml::Value) -> Option<Result<T, toml::de::Error>>,
+) -> Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    use serde::de::Error;
+    let mut t = toml::Table::deserialize(d)?;
+    let name = match t.remove(tag) {
+        Some(toml::Value::String(s)) => s,
+        Some(other) => return Err(D::Error::custom(format!("`{table}.{tag}` must be a string, got {other}"))),
+        None => return Err(D::Error::custom(format!("`{table}` needs the key `{tag}`"))),
+    };
+    match pick(&name, toml::Value::Table(t)) {
+        Some(r) => r.map_err(|e| D::Error::custom(format!("`{table}` ({tag} = \"{name}\"): {}", e.to_string().trim_end().replace('\n', " ")))),
+        None => Err(D::Error::custom(format!("`{table}.{tag}`: unknown variant `{name}`"))),
+    }
+}
+
+fn de_material<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Material, D::Error> {
+    de_tagged(d, "material", "model", |name, v| match name {
+        "mass_spring" => Some(v.try_into().map(Material::MassSpring)),
+        "local_shape_matching" => Some(v.try_into().map(Material::LocalShapeMatching)),
+        _ => None,
+    })
+}
+
+fn de_geometry<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Geometry, D::Error> {
+    de_tagged(d, "tissue.geometry", "kind", |name, v| match name {
+        "box" => Some(v.try_into().map(Geometry::Box)),
+        "obj" => Some(v.try_into().map(Geometry::Obj)),
+        _ => None,
+    })
+}
+
+fn de_weight<'de, D: serde::Deserializer<'de>>(d: D) -> Result<WeightKernel, D::Error> {
+    de_tagged(d, "tissue.weight", "kernel", |name, v| match name {
+        "uniform" => Some(v.try_into::<NoParams>().map(|_| WeightKernel::Uniform)),
+        "poly6" => Some(v.try_into::<Poly6Params>().map(|p| WeightKernel::Poly6 { support: p.support })),
+        _ => None,
+    })
+}
+
 impl Scene {
     /// Parses and validates a scene from TOML text. Relative paths resolve against
     /// `base_dir`.
@@ -394,12 +472,12 @@ impl Scene {
             }
         }
         match &t.geometry {
-            Geometry::Box {
+            Geometry::Box(BoxGeometry {
                 min,
                 max,
                 spacing,
                 nodes,
-            } => {
+            }) => {
                 for a in 0..3 {
                     finite("tissue.geometry.min", min[a])?;
                     finite("tissue.geometry.max", max[a])?;
@@ -444,24 +522,24 @@ impl Scene {
                     }
                 }
             }
-            Geometry::Obj { spacing, scale, .. } => {
+            Geometry::Obj(ObjGeometry { spacing, scale, .. }) => {
                 positive_finite("tissue.geometry.spacing", *spacing)?;
                 positive_finite("tissue.geometry.scale", *scale)?;
             }
         }
         match self.material {
-            Material::MassSpring {
+            Material::MassSpring(MassSpringParams {
                 stiffness,
                 spring_damping,
-            } => {
+            }) => {
                 positive_finite("material.stiffness", stiffness)?;
                 non_negative_finite("material.spring_damping", spring_damping)?;
             }
-            Material::LocalShapeMatching {
+            Material::LocalShapeMatching(ShapeMatchingParams {
                 stiffness,
                 rotation_iterations,
                 ..
-            } => {
+            }) => {
                 positive_finite("material.stiffness", stiffness)?;
                 if rotation_iterations == 0 || rotation_iterations > 100 {
                     return Err(SceneError::invalid(

@@ -51,7 +51,7 @@ impl Tissue {
         let n = cloud.positions.len();
         let k = scene.tissue.neighbours;
         if n < k + 1 {
-            return Err(GeometryError::TooFewNodes { nodes: n, needed: k + 1 }.into());
+            return Err(GeometryError::TooFewNodes { nodes: n, neighbours: k }.into());
         }
         let capacity = n + extra;
         let neighbours = Neighbours::build(&cloud.positions, k, scene.tissue.weight, capacity);

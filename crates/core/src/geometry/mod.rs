@@ -45,12 +45,12 @@ pub fn bounds(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
 /// Builds the node cloud that a scene's geometry describes.
 pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeCloud, SceneError> {
     match geometry {
-        Geometry::Box {
+        Geometry::Box(crate::scene::BoxGeometry {
             min,
             max,
             spacing,
             nodes,
-        } => {
+        }) => {
             let lattice = match (spacing, nodes) {
                 (Some(h), _) => box_lattice::BoxLattice::with_spacing(*min, *max, *h),
                 (None, Some(n)) => box_lattice::BoxLattice::with_node_count(*min, *max, *n),
@@ -63,11 +63,11 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             };
             Ok(lattice.cloud())
         }
-        Geometry::Obj {
+        Geometry::Obj(crate::scene::ObjGeometry {
             path,
             spacing,
             scale,
-        } => {
+        }) => {
             let full = if path.is_absolute() {
                 path.clone()
             } else {

@@ -9,7 +9,7 @@ pub mod mueller2016_rotation;
 
 use crate::math::{Vec4, QUAT_IDENTITY};
 use crate::neighbours::Neighbours;
-use crate::scene::{Material, ShapeMatchingForces};
+use crate::scene::{Material, ShapeMatchingForces, ShapeMatchingParams};
 
 /// Per-model shape information arrays, sized for the full capacity.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,10 +47,10 @@ impl ShapeInfo {
     pub fn build(material: &Material, rest: &[Vec4], nb: &Neighbours, n: usize) -> ShapeInfo {
         let capacity = rest.len();
         match material {
-            Material::MassSpring { .. } => ShapeInfo::MassSpring {
+            Material::MassSpring(_) => ShapeInfo::MassSpring {
                 rest_length: mass_spring::rest_lengths(rest, nb, n),
             },
-            Material::LocalShapeMatching { forces, .. } => {
+            Material::LocalShapeMatching(ShapeMatchingParams { forces, .. }) => {
                 let rest_position: Vec<Vec4> = rest.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
                 let mut shape_vector = vec![[0.0f32; 4]; capacity];
                 for (i, v) in shape_vector.iter_mut().enumerate().take(n) {

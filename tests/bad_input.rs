@@ -1,0 +1,146 @@
+//! Bad scene files and bad OBJ files give typed errors that name the problem.
+
+use needlesim::{GeometryError, Scene, SceneError, Tissue};
+use std::path::Path;
+
+const GOOD: &str = r#"
+[tissue]
+geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.02 }
+[material]
+model = "mass_spring"
+stiffness = 100.0
+[physics]
+dt = 1e-3
+"#;
+
+/// Parses `text` and builds its tissue; returns the error message.
+fn error_of(text: &str, base: &Path) -> (SceneError, String) {
+    let r = Scene::from_toml_str(text, base).and_then(|s| Tissue::from_scene(&s).map(|_| ()));
+    let e = r.expect_err("scene should be rejected");
+    let msg = e.to_string();
+    (e, msg)
+}
+
+#[test]
+fn the_reference_scene_is_valid() {
+    let s = Scene::from_toml_str(GOOD, Path::new(".")).unwrap();
+    assert_eq!(Tissue::from_scene(&s).unwrap().n_mesh, 216);
+}
+
+#[test]
+fn bad_scenes_name_the_key() {
+    // (edit applied to GOOD, text that the message must contain)
+    let cases: Vec<(String, &str)> = vec![
+        (GOOD.replace("[physics]", "[physics]\nstep_size = 2.0"), "step_size"),
+        (GOOD.replace("stiffness = 100.0", "stifness = 100.0"), "stifness"),
+        (GOOD.replace("stiffness = 100.0", "stiffness = -5.0"), "material.stiffness"),
+        (GOOD.replace("stiffness = 100.0", "stiffness = \"stiff\""), "stiffness"),
+        (GOOD.replace("dt = 1e-3", "dt = 0.0"), "physics.dt"),
+        (GOOD.replace("mass_spring", "finite_elements"), "finite_elements"),
+        (GOOD.replace("[tissue]", "[tissue]\nneighbours = 0"), "tissue.neighbours"),
+        (GOOD.replace("[tissue]", "[tissue]\ndensity = nan"), "tissue.density"),
+        (GOOD.replace("max = [0.1, 0.1, 0.1]", "max = [0.1, -0.1, 0.1]"), "tissue.geometry.max"),
+        (GOOD.replace("spacing = 0.02", "spacing = 0.02, nodes = 100"), "tissue.geometry"),
+        (GOOD.replace("spacing = 0.02", "spacing = 0.5"), "tissue.geometry.spacing"),
+        (GOOD.replace("kind = \"box\"", "kind = \"sphere\""), "sphere"),
+        (format!("{GOOD}\n[[fixed]]\naxis = \"y\"\nbelow = -1.0\n"), "fixed[0]"),
+        (format!("{GOOD}\n[[fixed]]\naxis = \"y\"\nbelow = 0.0\nabove = 0.1\n"), "fixed[0]"),
+        (format!("{GOOD}\n[[fixed]]\naxis = \"w\"\nbelow = 0.0\n"), "w"),
+        (format!("{GOOD}\n[initial]\nstretch = [1.0, 0.0, 1.0]\n"), "initial.stretch"),
+        (format!("{GOOD}\n[run]\noutput_every = 0\n"), "run.output_every"),
+        (GOOD.replace("[tissue]", "[tissue]\nweight = { kernel = \"poly6\", support = 0.5 }"), "tissue.weight.support"),
+        (GOOD.replace("[material]\nmodel = \"mass_spring\"\nstiffness = 100.0", ""), "material"),
+        (GOOD.replace("[tissue]", "[tissue]\nneighbours = 40").replace("spacing = 0.02", "spacing = 0.05"), "40"),
+        ("this is = not toml [".to_string(), "scene <string>"),
+    ];
+    for (text, needle) in &cases {
+        let (_, msg) = error_of(text, Path::new("."));
+        assert!(msg.contains(needle), "message `{msg}` should name `{needle}`");
+    }
+    assert!(cases.len() >= 8);
+}
+
+fn write_obj(dir: &Path, name: &str, body: &str) -> std::path::PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, body).unwrap();
+    p
+}
+
+fn obj_scene(obj: &str) -> String {
+    format!(
+        "[tissue]\nneighbours = 6\ngeometry = {{ kind = \"obj\", path = \"{obj}\", spacing = 0.25 }}\n[material]\nmodel = \"mass_spring\"\nstiffness = 1.0\n"
+    )
+}
+
+/// A unit octahedron written as OBJ, optionally with one face changed.
+fn octahedron(faces: &[&str]) -> String {
+    let mut s = String::from("v 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n");
+    for f in faces {
+        s.push_str(f);
+        s.push('\n');
+    }
+    s
+}
+
+const OCTA_FACES: [&str; 8] = [
+    "f 1 3 5", "f 3 2 5", "f 2 4 5", "f 4 1 5", "f 3 1 6", "f 2 3 6", "f 4 2 6", "f 1 4 6",
+];
+
+#[test]
+fn a_closed_obj_is_filled_with_nodes() {
+    let dir = tempfile::tempdir().unwrap();
+    write_obj(dir.path(), "octa.obj", &octahedron(&OCTA_FACES));
+    let scene = Scene::from_toml_str(&obj_scene("octa.obj"), dir.path()).unwrap();
+    let t = Tissue::from_scene(&scene).unwrap();
+    // Volume of the octahedron |x|+|y|+|z| <= 1 is 4/3.
+    assert!((t.volume - 4.0 / 3.0).abs() < 1e-9, "volume {}", t.volume);
+    assert!(t.n_mesh > 6, "interior nodes were added: {}", t.n_mesh);
+    for p in &t.state.positions[6..t.n_mesh] {
+        let l1 = p[0].abs() + p[1].abs() + p[2].abs();
+        assert!(l1 < 1.0, "interior node {p:?} outside");
+    }
+    t.neighbours.check_mutual(t.n_mesh).unwrap();
+}
+
+#[test]
+fn bad_obj_files_are_rejected_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut open = OCTA_FACES.to_vec();
+    open.pop();
+    let mut flipped = OCTA_FACES.to_vec();
+    flipped[0] = "f 1 5 3";
+    let inside_out: Vec<String> = OCTA_FACES
+        .iter()
+        .map(|f| {
+            let v: Vec<&str> = f.split_whitespace().collect();
+            format!("f {} {} {}", v[1], v[3], v[2])
+        })
+        .collect();
+    let inside_out: Vec<&str> = inside_out.iter().map(|s| s.as_str()).collect();
+    let mut extra = OCTA_FACES.to_vec();
+    extra.push("f 1 3 5");
+    let mut degenerate = OCTA_FACES.to_vec();
+    degenerate.push("f 1 1 2");
+    let cases: Vec<(&str, String, fn(&GeometryError) -> bool, &str)> = vec![
+        ("open.obj", octahedron(&open), |e| matches!(e, GeometryError::OpenSurface { .. }), "open"),
+        ("flipped.obj", octahedron(&flipped), |e| matches!(e, GeometryError::NonManifold { .. } | GeometryError::OpenSurface { .. }), "edge"),
+        ("inside_out.obj", octahedron(&inside_out), |e| matches!(e, GeometryError::NonPositiveVolume { .. }), "inside out"),
+        ("extra.obj", octahedron(&extra), |e| matches!(e, GeometryError::NonManifold { .. }), "not manifold"),
+        ("degenerate.obj", octahedron(&degenerate), |e| matches!(e, GeometryError::DegenerateTriangle { .. }), "degenerate"),
+        ("empty.obj", "# nothing here\nv 0 0 0\n".into(), |e| matches!(e, GeometryError::Empty { .. }), "no triangles"),
+        ("out_of_range.obj", octahedron(&["f 1 2 99"]), |e| matches!(e, GeometryError::ObjLoad { .. }), "cannot load"),
+        ("garbage.obj", "v 1 zero 0\nf 1 2 3\n".into(), |e| matches!(e, GeometryError::ObjLoad { .. }), "cannot load"),
+    ];
+    for (name, body, is_expected, text) in cases {
+        write_obj(d, name, &body);
+        let (err, msg) = error_of(&obj_scene(name), d);
+        match &err {
+            SceneError::Geometry(g) => assert!(is_expected(g), "{name}: unexpected {g:?}"),
+            other => panic!("{name}: expected a geometry error, got {other:?}"),
+        }
+        assert!(msg.contains(name) && msg.contains(text), "{name}: message `{msg}`");
+    }
+    let (err, msg) = error_of(&obj_scene("missing.obj"), d);
+    assert!(matches!(err, SceneError::Geometry(GeometryError::ObjLoad { .. })) && msg.contains("missing.obj"), "{msg}");
+}

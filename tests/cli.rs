@@ -1,0 +1,76 @@
+//! The command line tool, run as a user would.
+
+use std::process::Command;
+
+fn needlesim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_needlesim"))
+}
+
+#[test]
+fn run_default_scene_writes_csv_and_paraview_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cube");
+    let o = needlesim()
+        .args(["run", "--steps", "200", "--threads", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("steps/s") && stdout.contains("nodes       648"), "{stdout}");
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], needlesim::output::CSV_HEADER);
+    // Default scene writes every 100 steps: frames at 0, 100, 200.
+    assert_eq!(lines.len(), 4, "{csv}");
+    let last: Vec<f64> = lines[3].split(',').map(|x| x.parse().unwrap()).collect();
+    assert_eq!(last[1], 200.0);
+    assert!(last[4] > 0.0, "the cube sags: max displacement {}", last[4]);
+    let pvd = std::fs::read_to_string(out.join("surface.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), 3);
+    let vtp = std::fs::read_to_string(out.join("surface/surface_00002.vtp")).unwrap();
+    assert!(vtp.contains("NumberOfPolys=\"704\"") && vtp.contains("Name=\"displacement\""));
+}
+
+#[test]
+fn info_lists_the_arrays_of_the_chosen_model_only() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let o = needlesim().args(["info", &format!("{root}/scenes/cube_sag_msm.toml")]).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}");
+    assert!(stdout.contains("rest_length") && !stdout.contains("shape_vector"), "{stdout}");
+    let o = needlesim().args(["info", &format!("{root}/scenes/cube_sag_lshm.toml")]).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("shape_vector") && !stdout.contains("rest_length"), "{stdout}");
+}
+
+#[test]
+fn a_bad_scene_fails_with_a_message_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.toml");
+    std::fs::write(&scene, "[tissue]\ngeometry = { kind = \"box\", min = [0,0,0], max = [1,1,1], spacing = 0.5 }\n[material]\nmodel = \"mass_spring\"\nstiffness = 1.0\n[physics]\ndt = -1.0\n").unwrap();
+    let o = needlesim().arg("run").arg(&scene).output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr.contains("physics.dt") && !stderr.contains("panicked"), "{stderr}");
+    let o = needlesim().args(["run", "no/such/scene.toml"]).output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("no/such/scene.toml"), "{stderr}");
+}
+
+#[test]
+fn every_shipped_scene_loads() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let scene = needlesim::Scene::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            needlesim::SceneInfo::of(&scene).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            n += 1;
+        }
+    }
+    assert!(n >= 4, "found {n} scenes");
+    let default = needlesim::Scene::from_toml_str(needlesim::DEFAULT_SCENE, std::path::Path::new(".")).unwrap();
+    assert_eq!(default, needlesim::Scene::from_file(dir.join("cube_sag_lshm.toml")).map(|mut s| { s.base_dir = ".".into(); s }).unwrap());
+}
