@@ -73,16 +73,32 @@ impl SceneInfo {
 impl fmt::Display for SceneInfo {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let (lo, hi) = self.bounds;
-        writeln!(f, "scene      {}", if self.name.is_empty() { "(unnamed)" } else { &self.name })?;
+        writeln!(
+            f,
+            "scene      {}",
+            if self.name.is_empty() {
+                "(unnamed)"
+            } else {
+                &self.name
+            }
+        )?;
         writeln!(f, "model      {}", self.model)?;
-        writeln!(f, "nodes      {} (capacity {}, fixed {})", self.nodes, self.capacity, self.fixed)?;
+        writeln!(
+            f,
+            "nodes      {} (capacity {}, fixed {})",
+            self.nodes, self.capacity, self.fixed
+        )?;
         writeln!(f, "surface    {} triangles", self.triangles)?;
         writeln!(
             f,
             "bounds     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}] m",
             lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
         )?;
-        writeln!(f, "volume     {:.4e} m^3, node mass {:.4e} kg", self.volume, self.node_mass)?;
+        writeln!(
+            f,
+            "volume     {:.4e} m^3, node mass {:.4e} kg",
+            self.volume, self.node_mass
+        )?;
         let s = &self.neighbours;
         writeln!(
             f,

@@ -23,8 +23,8 @@ pub mod runner;
 pub use info::SceneInfo;
 pub use needlesim_core as core;
 pub use needlesim_core::{
-    Backend, CpuBackend, GeometryError, Material, NodeField, Scene, SceneError, SimError, Threading,
-    Tissue,
+    Backend, CpuBackend, GeometryError, Material, NodeField, Scene, SceneError, SimError,
+    Threading, Tissue,
 };
 pub use runner::{make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary};
 

@@ -33,7 +33,14 @@ impl CsvWriter {
         writeln!(
             self.out,
             "{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e}",
-            m.frame, m.step, m.time, m.kinetic_energy, m.max_displacement, m.mean_displacement, m.max_speed, m.max_force
+            m.frame,
+            m.step,
+            m.time,
+            m.kinetic_energy,
+            m.max_displacement,
+            m.mean_displacement,
+            m.max_speed,
+            m.max_force
         )
     }
 
@@ -86,7 +93,10 @@ impl SurfaceWriter {
         let name = format!("surface/surface_{:05}.vtp", self.frames.len());
         let mut out = BufWriter::new(File::create(self.dir.join(&name))?);
         writeln!(out, r#"<?xml version="1.0"?>"#)?;
-        writeln!(out, r#"<VTKFile type="PolyData" version="0.1" byte_order="LittleEndian">"#)?;
+        writeln!(
+            out,
+            r#"<VTKFile type="PolyData" version="0.1" byte_order="LittleEndian">"#
+        )?;
         writeln!(out, "<PolyData>")?;
         writeln!(
             out,
@@ -94,14 +104,20 @@ impl SurfaceWriter {
             self.points.len(),
             self.triangles.len()
         )?;
-        writeln!(out, r#"<Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">"#)?;
+        writeln!(
+            out,
+            r#"<Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">"#
+        )?;
         for &i in &self.points {
             let p = pos[i as usize];
             writeln!(out, "{} {} {}", p[0], p[1], p[2])?;
         }
         writeln!(out, "</DataArray></Points>")?;
         writeln!(out, r#"<PointData Vectors="displacement">"#)?;
-        writeln!(out, r#"<DataArray type="Float32" Name="displacement" NumberOfComponents="3" format="ascii">"#)?;
+        writeln!(
+            out,
+            r#"<DataArray type="Float32" Name="displacement" NumberOfComponents="3" format="ascii">"#
+        )?;
         for &i in &self.points {
             let (p, r) = (pos[i as usize], rest[i as usize]);
             writeln!(
@@ -114,12 +130,18 @@ impl SurfaceWriter {
         }
         writeln!(out, "</DataArray></PointData>")?;
         writeln!(out, "<Polys>")?;
-        writeln!(out, r#"<DataArray type="Int32" Name="connectivity" format="ascii">"#)?;
+        writeln!(
+            out,
+            r#"<DataArray type="Int32" Name="connectivity" format="ascii">"#
+        )?;
         for t in &self.triangles {
             writeln!(out, "{} {} {}", t[0], t[1], t[2])?;
         }
         writeln!(out, "</DataArray>")?;
-        writeln!(out, r#"<DataArray type="Int32" Name="offsets" format="ascii">"#)?;
+        writeln!(
+            out,
+            r#"<DataArray type="Int32" Name="offsets" format="ascii">"#
+        )?;
         for k in 1..=self.triangles.len() {
             write!(out, "{} ", 3 * k)?;
         }
@@ -135,10 +157,16 @@ impl SurfaceWriter {
         let pvd = self.dir.join("surface.pvd");
         let mut out = BufWriter::new(File::create(&pvd)?);
         writeln!(out, r#"<?xml version="1.0"?>"#)?;
-        writeln!(out, r#"<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">"#)?;
+        writeln!(
+            out,
+            r#"<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">"#
+        )?;
         writeln!(out, "<Collection>")?;
         for (t, name) in &self.frames {
-            writeln!(out, r#"<DataSet timestep="{t}" group="" part="0" file="{name}"/>"#)?;
+            writeln!(
+                out,
+                r#"<DataSet timestep="{t}" group="" part="0" file="{name}"/>"#
+            )?;
         }
         writeln!(out, "</Collection>\n</VTKFile>")?;
         out.flush()?;

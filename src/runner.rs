@@ -4,7 +4,9 @@
 use crate::output::{CsvWriter, SurfaceWriter};
 use needlesim_core::geometry;
 use needlesim_core::scene::BackendChoice;
-use needlesim_core::{Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue};
+use needlesim_core::{
+    Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue,
+};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -119,7 +121,15 @@ pub fn make_backend(
     Ok(Box::new(CpuBackend::new(tissue, threading)?))
 }
 
-fn metrics(frame: usize, step: u64, dt: f64, pos: &[[f32; 4]], vel: &[[f32; 4]], force: &[[f32; 4]], rest: &[[f64; 3]]) -> FrameMetrics {
+fn metrics(
+    frame: usize,
+    step: u64,
+    dt: f64,
+    pos: &[[f32; 4]],
+    vel: &[[f32; 4]],
+    force: &[[f32; 4]],
+    rest: &[[f64; 3]],
+) -> FrameMetrics {
     let mut m = FrameMetrics {
         frame,
         step,
@@ -140,7 +150,10 @@ fn metrics(frame: usize, step: u64, dt: f64, pos: &[[f32; 4]], vel: &[[f32; 4]],
         m.max_speed = m.max_speed.max(v2.sqrt());
         m.max_force = m.max_force.max(sq(force[i]).sqrt());
         if i < n {
-            let d = (0..3).map(|a| (pos[i][a] as f64 - rest[i][a]).powi(2)).sum::<f64>().sqrt();
+            let d = (0..3)
+                .map(|a| (pos[i][a] as f64 - rest[i][a]).powi(2))
+                .sum::<f64>()
+                .sqrt();
             m.max_displacement = m.max_displacement.max(d);
             m.mean_displacement += d / n as f64;
         }
@@ -174,9 +187,13 @@ pub fn run_scene(
     let mut surface = None;
     if options.write_files {
         std::fs::create_dir_all(&options.out_dir).map_err(io(&options.out_dir))?;
-        csv = Some(CsvWriter::create(&options.out_dir.join("frames.csv")).map_err(io(&options.out_dir))?);
+        csv = Some(
+            CsvWriter::create(&options.out_dir.join("frames.csv")).map_err(io(&options.out_dir))?,
+        );
         if scene.run.surface_frames {
-            surface = Some(SurfaceWriter::new(&options.out_dir, &triangles).map_err(io(&options.out_dir))?);
+            surface = Some(
+                SurfaceWriter::new(&options.out_dir, &triangles).map_err(io(&options.out_dir))?,
+            );
         }
     }
 

@@ -31,31 +31,95 @@ fn the_reference_scene_is_valid() {
 fn bad_scenes_name_the_key() {
     // (edit applied to GOOD, text that the message must contain)
     let cases: Vec<(String, &str)> = vec![
-        (GOOD.replace("[physics]", "[physics]\nstep_size = 2.0"), "step_size"),
-        (GOOD.replace("stiffness = 100.0", "stifness = 100.0"), "stifness"),
-        (GOOD.replace("stiffness = 100.0", "stiffness = -5.0"), "material.stiffness"),
-        (GOOD.replace("stiffness = 100.0", "stiffness = \"stiff\""), "stiffness"),
+        (
+            GOOD.replace("[physics]", "[physics]\nstep_size = 2.0"),
+            "step_size",
+        ),
+        (
+            GOOD.replace("stiffness = 100.0", "stifness = 100.0"),
+            "stifness",
+        ),
+        (
+            GOOD.replace("stiffness = 100.0", "stiffness = -5.0"),
+            "material.stiffness",
+        ),
+        (
+            GOOD.replace("stiffness = 100.0", "stiffness = \"stiff\""),
+            "stiffness",
+        ),
         (GOOD.replace("dt = 1e-3", "dt = 0.0"), "physics.dt"),
-        (GOOD.replace("mass_spring", "finite_elements"), "finite_elements"),
-        (GOOD.replace("[tissue]", "[tissue]\nneighbours = 0"), "tissue.neighbours"),
-        (GOOD.replace("[tissue]", "[tissue]\ndensity = nan"), "tissue.density"),
-        (GOOD.replace("max = [0.1, 0.1, 0.1]", "max = [0.1, -0.1, 0.1]"), "tissue.geometry.max"),
-        (GOOD.replace("spacing = 0.02", "spacing = 0.02, nodes = 100"), "tissue.geometry"),
-        (GOOD.replace("spacing = 0.02", "spacing = 0.5"), "tissue.geometry.spacing"),
-        (GOOD.replace("kind = \"box\"", "kind = \"sphere\""), "sphere"),
-        (format!("{GOOD}\n[[fixed]]\naxis = \"y\"\nbelow = -1.0\n"), "fixed[0]"),
-        (format!("{GOOD}\n[[fixed]]\naxis = \"y\"\nbelow = 0.0\nabove = 0.1\n"), "fixed[0]"),
-        (format!("{GOOD}\n[[fixed]]\naxis = \"w\"\nbelow = 0.0\n"), "w"),
-        (format!("{GOOD}\n[initial]\nstretch = [1.0, 0.0, 1.0]\n"), "initial.stretch"),
-        (format!("{GOOD}\n[run]\noutput_every = 0\n"), "run.output_every"),
-        (GOOD.replace("[tissue]", "[tissue]\nweight = { kernel = \"poly6\", support = 0.5 }"), "tissue.weight.support"),
-        (GOOD.replace("[material]\nmodel = \"mass_spring\"\nstiffness = 100.0", ""), "material"),
-        (GOOD.replace("[tissue]", "[tissue]\nneighbours = 40").replace("spacing = 0.02", "spacing = 0.05"), "40"),
+        (
+            GOOD.replace("mass_spring", "finite_elements"),
+            "finite_elements",
+        ),
+        (
+            GOOD.replace("[tissue]", "[tissue]\nneighbours = 0"),
+            "tissue.neighbours",
+        ),
+        (
+            GOOD.replace("[tissue]", "[tissue]\ndensity = nan"),
+            "tissue.density",
+        ),
+        (
+            GOOD.replace("max = [0.1, 0.1, 0.1]", "max = [0.1, -0.1, 0.1]"),
+            "tissue.geometry.max",
+        ),
+        (
+            GOOD.replace("spacing = 0.02", "spacing = 0.02, nodes = 100"),
+            "tissue.geometry",
+        ),
+        (
+            GOOD.replace("spacing = 0.02", "spacing = 0.5"),
+            "tissue.geometry.spacing",
+        ),
+        (
+            GOOD.replace("kind = \"box\"", "kind = \"sphere\""),
+            "sphere",
+        ),
+        (
+            format!("{GOOD}\n[[fixed]]\naxis = \"y\"\nbelow = -1.0\n"),
+            "fixed[0]",
+        ),
+        (
+            format!("{GOOD}\n[[fixed]]\naxis = \"y\"\nbelow = 0.0\nabove = 0.1\n"),
+            "fixed[0]",
+        ),
+        (
+            format!("{GOOD}\n[[fixed]]\naxis = \"w\"\nbelow = 0.0\n"),
+            "w",
+        ),
+        (
+            format!("{GOOD}\n[initial]\nstretch = [1.0, 0.0, 1.0]\n"),
+            "initial.stretch",
+        ),
+        (
+            format!("{GOOD}\n[run]\noutput_every = 0\n"),
+            "run.output_every",
+        ),
+        (
+            GOOD.replace(
+                "[tissue]",
+                "[tissue]\nweight = { kernel = \"poly6\", support = 0.5 }",
+            ),
+            "tissue.weight.support",
+        ),
+        (
+            GOOD.replace("[material]\nmodel = \"mass_spring\"\nstiffness = 100.0", ""),
+            "material",
+        ),
+        (
+            GOOD.replace("[tissue]", "[tissue]\nneighbours = 40")
+                .replace("spacing = 0.02", "spacing = 0.05"),
+            "40",
+        ),
         ("this is = not toml [".to_string(), "scene <string>"),
     ];
     for (text, needle) in &cases {
         let (_, msg) = error_of(text, Path::new("."));
-        assert!(msg.contains(needle), "message `{msg}` should name `{needle}`");
+        assert!(
+            msg.contains(needle),
+            "message `{msg}` should name `{needle}`"
+        );
     }
     assert!(cases.len() >= 8);
 }
@@ -122,15 +186,66 @@ fn bad_obj_files_are_rejected_with_the_reason() {
     extra.push("f 1 3 5");
     let mut degenerate = OCTA_FACES.to_vec();
     degenerate.push("f 1 1 2");
-    let cases: Vec<(&str, String, fn(&GeometryError) -> bool, &str)> = vec![
-        ("open.obj", octahedron(&open), |e| matches!(e, GeometryError::OpenSurface { .. }), "open"),
-        ("flipped.obj", octahedron(&flipped), |e| matches!(e, GeometryError::NonManifold { .. } | GeometryError::OpenSurface { .. }), "edge"),
-        ("inside_out.obj", octahedron(&inside_out), |e| matches!(e, GeometryError::NonPositiveVolume { .. }), "inside out"),
-        ("extra.obj", octahedron(&extra), |e| matches!(e, GeometryError::NonManifold { .. }), "not manifold"),
-        ("degenerate.obj", octahedron(&degenerate), |e| matches!(e, GeometryError::DegenerateTriangle { .. }), "degenerate"),
-        ("empty.obj", "# nothing here\nv 0 0 0\n".into(), |e| matches!(e, GeometryError::Empty { .. }), "no triangles"),
-        ("out_of_range.obj", octahedron(&["f 1 2 99"]), |e| matches!(e, GeometryError::ObjLoad { .. }), "cannot load"),
-        ("garbage.obj", "v 1 zero 0\nf 1 2 3\n".into(), |e| matches!(e, GeometryError::ObjLoad { .. }), "cannot load"),
+    type Case = (
+        &'static str,
+        String,
+        fn(&GeometryError) -> bool,
+        &'static str,
+    );
+    let cases: Vec<Case> = vec![
+        (
+            "open.obj",
+            octahedron(&open),
+            |e| matches!(e, GeometryError::OpenSurface { .. }),
+            "open",
+        ),
+        (
+            "flipped.obj",
+            octahedron(&flipped),
+            |e| {
+                matches!(
+                    e,
+                    GeometryError::NonManifold { .. } | GeometryError::OpenSurface { .. }
+                )
+            },
+            "edge",
+        ),
+        (
+            "inside_out.obj",
+            octahedron(&inside_out),
+            |e| matches!(e, GeometryError::NonPositiveVolume { .. }),
+            "inside out",
+        ),
+        (
+            "extra.obj",
+            octahedron(&extra),
+            |e| matches!(e, GeometryError::NonManifold { .. }),
+            "not manifold",
+        ),
+        (
+            "degenerate.obj",
+            octahedron(&degenerate),
+            |e| matches!(e, GeometryError::DegenerateTriangle { .. }),
+            "degenerate",
+        ),
+        (
+            "empty.obj",
+            "# nothing here\nv 0 0 0\n".into(),
+            |e| matches!(e, GeometryError::Empty { .. }),
+            "no triangles",
+        ),
+        (
+            "out_of_range.obj",
+            octahedron(&["f 1 2 99"]),
+            |e| matches!(e, GeometryError::ObjLoad { .. }),
+            "cannot load",
+        ),
+        (
+            "garbage.obj",
+            "v 1 zero 0\nf 1 2 3\n".into(),
+            |e| matches!(e, GeometryError::ObjLoad { .. }),
+            "cannot load",
+        ),
     ];
     for (name, body, is_expected, text) in cases {
         write_obj(d, name, &body);
@@ -139,8 +254,15 @@ fn bad_obj_files_are_rejected_with_the_reason() {
             SceneError::Geometry(g) => assert!(is_expected(g), "{name}: unexpected {g:?}"),
             other => panic!("{name}: expected a geometry error, got {other:?}"),
         }
-        assert!(msg.contains(name) && msg.contains(text), "{name}: message `{msg}`");
+        assert!(
+            msg.contains(name) && msg.contains(text),
+            "{name}: message `{msg}`"
+        );
     }
     let (err, msg) = error_of(&obj_scene("missing.obj"), d);
-    assert!(matches!(err, SceneError::Geometry(GeometryError::ObjLoad { .. })) && msg.contains("missing.obj"), "{msg}");
+    assert!(
+        matches!(err, SceneError::Geometry(GeometryError::ObjLoad { .. }))
+            && msg.contains("missing.obj"),
+        "{msg}"
+    );
 }

@@ -16,8 +16,15 @@ fn run_default_scene_writes_csv_and_paraview_frames() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
-    assert!(stdout.contains("steps/s") && stdout.contains("nodes       648"), "{stdout}");
+    assert!(
+        o.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        stdout.contains("steps/s") && stdout.contains("nodes       648"),
+        "{stdout}"
+    );
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], needlesim::output::CSV_HEADER);
@@ -35,13 +42,25 @@ fn run_default_scene_writes_csv_and_paraview_frames() {
 #[test]
 fn info_lists_the_arrays_of_the_chosen_model_only() {
     let root = env!("CARGO_MANIFEST_DIR");
-    let o = needlesim().args(["info", &format!("{root}/scenes/cube_sag_msm.toml")]).output().unwrap();
+    let o = needlesim()
+        .args(["info", &format!("{root}/scenes/cube_sag_msm.toml")])
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{stdout}");
-    assert!(stdout.contains("rest_length") && !stdout.contains("shape_vector"), "{stdout}");
-    let o = needlesim().args(["info", &format!("{root}/scenes/cube_sag_lshm.toml")]).output().unwrap();
+    assert!(
+        stdout.contains("rest_length") && !stdout.contains("shape_vector"),
+        "{stdout}"
+    );
+    let o = needlesim()
+        .args(["info", &format!("{root}/scenes/cube_sag_lshm.toml")])
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("shape_vector") && !stdout.contains("rest_length"), "{stdout}");
+    assert!(
+        stdout.contains("shape_vector") && !stdout.contains("rest_length"),
+        "{stdout}"
+    );
 }
 
 #[test]
@@ -52,10 +71,19 @@ fn a_bad_scene_fails_with_a_message_not_a_panic() {
     let o = needlesim().arg("run").arg(&scene).output().unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr.contains("physics.dt") && !stderr.contains("panicked"), "{stderr}");
-    let o = needlesim().args(["run", "no/such/scene.toml"]).output().unwrap();
+    assert!(
+        stderr.contains("physics.dt") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    let o = needlesim()
+        .args(["run", "no/such/scene.toml"])
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && stderr.contains("no/such/scene.toml"), "{stderr}");
+    assert!(
+        !o.status.success() && stderr.contains("no/such/scene.toml"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -65,12 +93,23 @@ fn every_shipped_scene_loads() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
-            let scene = needlesim::Scene::from_file(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let scene = needlesim::Scene::from_file(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             needlesim::SceneInfo::of(&scene).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             n += 1;
         }
     }
     assert!(n >= 4, "found {n} scenes");
-    let default = needlesim::Scene::from_toml_str(needlesim::DEFAULT_SCENE, std::path::Path::new(".")).unwrap();
-    assert_eq!(default, needlesim::Scene::from_file(dir.join("cube_sag_lshm.toml")).map(|mut s| { s.base_dir = ".".into(); s }).unwrap());
+    let default =
+        needlesim::Scene::from_toml_str(needlesim::DEFAULT_SCENE, std::path::Path::new("."))
+            .unwrap();
+    assert_eq!(
+        default,
+        needlesim::Scene::from_file(dir.join("cube_sag_lshm.toml"))
+            .map(|mut s| {
+                s.base_dir = ".".into();
+                s
+            })
+            .unwrap()
+    );
 }

@@ -26,13 +26,21 @@ fn rest_state_is_an_equilibrium() {
         let mut b = backend(&scene, Threading::Single);
         b.compute_forces();
         let f = max_norm(&read(&mut b, NodeField::Force));
-        assert!(f <= EQUILIBRIUM_TOL * scale, "{label}: rest force {f:e} vs stretched {scale:e}");
+        assert!(
+            f <= EQUILIBRIUM_TOL * scale,
+            "{label}: rest force {f:e} vs stretched {scale:e}"
+        );
         // And it stays at rest: 100 steps move no node by more than 1e-6 of the cube size.
         b.step(100);
         let rest = rest_positions(&scene);
         let p = read(&mut b, NodeField::Position);
         let moved = (0..rest.len())
-            .map(|i| (0..3).map(|a| (p[i][a] as f64 - rest[i][a]).powi(2)).sum::<f64>().sqrt())
+            .map(|i| {
+                (0..3)
+                    .map(|a| (p[i][a] as f64 - rest[i][a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
             .fold(0.0, f64::max);
         assert!(moved < 1e-7, "{label}: rest state drifted by {moved:e} m");
     }
@@ -50,7 +58,8 @@ fn rigid_rotation_gives_zero_force() {
             let rest = rest_positions(&scene);
             let mut b = backend(&scene, Threading::Single);
             let n = rest.len();
-            let c: [f64; 3] = std::array::from_fn(|a| rest.iter().map(|p| p[a]).sum::<f64>() / n as f64);
+            let c: [f64; 3] =
+                std::array::from_fn(|a| rest.iter().map(|p| p[a]).sum::<f64>() / n as f64);
             let (s, co) = std::f64::consts::FRAC_PI_2.sin_cos();
             let mut p = read(&mut b, NodeField::Position);
             for i in 0..n {
@@ -67,9 +76,10 @@ fn rigid_rotation_gives_zero_force() {
                 }
             }
             b.write(NodeField::Position, 0, &p).unwrap();
-            // Shape matching refines its warm-started rotation a few iterations per call;
-            // a 90 degree jump from the identity needs a few calls to converge.
-            for _ in 0..5 {
+            // Shape matching refines its warm-started rotation by 2 iterations per call (the
+            // default); a 90 degree jump from the identity takes tens of calls on flat surface
+            // clusters, where the iteration converges linearly.
+            for _ in 0..50 {
                 b.compute_forces();
             }
             let f = max_norm(&read(&mut b, NodeField::Force));
@@ -95,12 +105,25 @@ fn stretched_cube_returns_to_rest() {
         b.check_finite().unwrap();
         let p = read(&mut b, NodeField::Position);
         let n = rest.len();
-        let shift: [f64; 3] = std::array::from_fn(|a| (0..n).map(|i| p[i][a] as f64 - rest[i][a]).sum::<f64>() / n as f64);
+        let shift: [f64; 3] = std::array::from_fn(|a| {
+            (0..n).map(|i| p[i][a] as f64 - rest[i][a]).sum::<f64>() / n as f64
+        });
         let worst = (0..n)
-            .map(|i| (0..3).map(|a| (p[i][a] as f64 - rest[i][a] - shift[a]).powi(2)).sum::<f64>().sqrt())
+            .map(|i| {
+                (0..3)
+                    .map(|a| (p[i][a] as f64 - rest[i][a] - shift[a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
             .fold(0.0, f64::max);
-        assert!(worst < 0.01 * 0.1, "{label}: max distance from rest shape {worst:e} m");
-        assert!(shift.iter().all(|s| s.abs() < 1e-4), "{label}: drifted {shift:?}");
+        assert!(
+            worst < 0.01 * 0.1,
+            "{label}: max distance from rest shape {worst:e} m"
+        );
+        assert!(
+            shift.iter().all(|s| s.abs() < 1e-4),
+            "{label}: drifted {shift:?}"
+        );
     }
 }
 
@@ -122,7 +145,10 @@ fn momentum_conserving_forces_sum_to_zero() {
         let sum: [f64; 3] = std::array::from_fn(|a| f.iter().map(|v| v[a] as f64).sum());
         let mag: f64 = f.iter().map(|v| norm3(*v)).sum();
         let net = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
-        assert!(net <= 1e-5 * mag, "{label}: net force {net:e} vs total {mag:e}");
+        assert!(
+            net <= 1e-5 * mag,
+            "{label}: net force {net:e} vs total {mag:e}"
+        );
     }
 }
 
@@ -137,7 +163,10 @@ fn single_and_multi_threaded_agree() {
         assert_eq!(two.threads(), 2);
         one.step(1000);
         two.step(1000);
-        let (a, b) = (read(&mut one, NodeField::Position), read(&mut two, NodeField::Position));
+        let (a, b) = (
+            read(&mut one, NodeField::Position),
+            read(&mut two, NodeField::Position),
+        );
         let scale = max_norm(&a);
         for i in 0..a.len() {
             let d = norm3([a[i][0] - b[i][0], a[i][1] - b[i][1], a[i][2] - b[i][2], 0.0]);
@@ -159,7 +188,9 @@ fn built_neighbour_lists_are_mutual() {
 
 #[test]
 fn gravity_sag_settles_with_fixed_face_unmoved() {
-    let scene = needlesim::Scene::from_toml_str(needlesim::DEFAULT_SCENE, std::path::Path::new(".")).unwrap();
+    let scene =
+        needlesim::Scene::from_toml_str(needlesim::DEFAULT_SCENE, std::path::Path::new("."))
+            .unwrap();
     let rest = rest_positions(&scene);
     let mut b = backend(&scene, Threading::Parallel);
     b.step(3000);
@@ -167,7 +198,10 @@ fn gravity_sag_settles_with_fixed_face_unmoved() {
     let v = read(&mut b, NodeField::Velocity);
     for i in 0..rest.len() {
         if rest[i][0] <= 0.001 {
-            assert!((0..3).all(|a| p[i][a] == rest[i][a] as f32), "fixed node {i} moved");
+            assert!(
+                (0..3).all(|a| p[i][a] == rest[i][a] as f32),
+                "fixed node {i} moved"
+            );
         }
     }
     // Settled: every node slower than 1 mm/s; sagged: the free end moved down.

@@ -7,7 +7,11 @@ use needlesim::{run_scene, RunOptions, Scene, SceneInfo, DEFAULT_SCENE};
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
-#[command(name = "needlesim", version, about = "Needle insertion into meshfree soft tissue")]
+#[command(
+    name = "needlesim",
+    version,
+    about = "Needle insertion into meshfree soft tissue"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -41,10 +45,16 @@ fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
     match scene {
         Some(path) => {
             let s = Scene::from_file(path)?;
-            let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
+            let stem = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scene".into());
             Ok((s, stem))
         }
-        None => Ok((Scene::from_toml_str(DEFAULT_SCENE, Path::new("."))?, "default".into())),
+        None => Ok((
+            Scene::from_toml_str(DEFAULT_SCENE, Path::new("."))?,
+            "default".into(),
+        )),
     }
 }
 

@@ -5,9 +5,18 @@ use std::path::Path;
 
 /// The three force models under test: (label, [material] table body).
 pub const MODELS: [(&str, &str); 3] = [
-    ("msm", "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.0"),
-    ("lshm-node", "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"node\""),
-    ("lshm-cluster", "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\""),
+    (
+        "msm",
+        "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.0",
+    ),
+    (
+        "lshm-node",
+        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"node\"",
+    ),
+    (
+        "lshm-cluster",
+        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
+    ),
 ];
 
 /// A free 10 cm cube of about `nodes` nodes with the given material, damping and stretch.
@@ -22,7 +31,9 @@ pub fn cube_scene(material: &str, nodes: usize, damping: f64, stretch: [f64; 3])
 }
 
 pub fn rest_positions(scene: &Scene) -> Vec<[f64; 3]> {
-    geometry::build(&scene.tissue.geometry, &scene.base_dir).unwrap().positions
+    geometry::build(&scene.tissue.geometry, &scene.base_dir)
+        .unwrap()
+        .positions
 }
 
 pub fn backend(scene: &Scene, threading: Threading) -> CpuBackend {

@@ -43,18 +43,31 @@ pub trait Backend {
     /// Steps run since creation.
     fn steps_taken(&self) -> u64;
     /// Copies `range` of `field` into `out` (`out.len() == range.len()`).
-    fn read(&mut self, field: NodeField, range: Range<usize>, out: &mut [Vec4]) -> Result<(), SimError>;
+    fn read(
+        &mut self,
+        field: NodeField,
+        range: Range<usize>,
+        out: &mut [Vec4],
+    ) -> Result<(), SimError>;
     /// Overwrites `data.len()` nodes of `field` starting at `first`.
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError>;
     /// Overwrites the neighbour rows of nodes `first..first + index.len() / K`.
-    fn write_neighbour_rows(&mut self, first: usize, index: &[u32], weight: &[f32]) -> Result<(), SimError>;
+    fn write_neighbour_rows(
+        &mut self,
+        first: usize,
+        index: &[u32],
+        weight: &[f32],
+    ) -> Result<(), SimError>;
 
     /// Reads the positions of all active nodes and returns an error naming the first
     /// non-finite position or velocity.
     fn check_finite(&mut self) -> Result<(), SimError> {
         let n = self.n_active();
         let mut buf = vec![[0.0f32; 4]; n];
-        for (field, name) in [(NodeField::Position, "position"), (NodeField::Velocity, "velocity")] {
+        for (field, name) in [
+            (NodeField::Position, "position"),
+            (NodeField::Velocity, "velocity"),
+        ] {
             self.read(field, 0..n, &mut buf)?;
             if let Some(node) = buf.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
                 return Err(SimError::Diverged {

@@ -183,18 +183,36 @@ impl Backend for CpuBackend {
                 let (rest, sv) = (&rest_position[..], &shape_vector[..]);
                 match cluster_centre {
                     None => {
-                        for_each_node(pool, self.parallel, forces, &mut rotation[..n], |i, f, q| {
-                            *f = local_shape_matching::node_force(i, pos, rest, sv[i], nb, k, iters, q);
-                        });
+                        for_each_node(
+                            pool,
+                            self.parallel,
+                            forces,
+                            &mut rotation[..n],
+                            |i, f, q| {
+                                *f = local_shape_matching::node_force(
+                                    i, pos, rest, sv[i], nb, k, iters, q,
+                                );
+                            },
+                        );
                     }
                     Some(centre) => {
-                        for_each_node(pool, self.parallel, &mut centre[..n], &mut rotation[..n], |i, c, q| {
-                            (*c, *q) = local_shape_matching::cluster_frame(i, pos, rest, sv[i], nb, iters, *q);
-                        });
+                        for_each_node(
+                            pool,
+                            self.parallel,
+                            &mut centre[..n],
+                            &mut rotation[..n],
+                            |i, c, q| {
+                                (*c, *q) = local_shape_matching::cluster_frame(
+                                    i, pos, rest, sv[i], nb, iters, *q,
+                                );
+                            },
+                        );
                         let (centre, rotation) = (&centre[..], &rotation[..]);
                         let mut unit = vec![(); n];
                         for_each_node(pool, self.parallel, forces, &mut unit, |j, f, _| {
-                            *f = local_shape_matching::cluster_force(j, pos, rest, sv, nb, k, centre, rotation);
+                            *f = local_shape_matching::cluster_force(
+                                j, pos, rest, sv, nb, k, centre, rotation,
+                            );
                         });
                     }
                 }
@@ -222,7 +240,12 @@ impl Backend for CpuBackend {
         self.steps
     }
 
-    fn read(&mut self, field: NodeField, range: Range<usize>, out: &mut [Vec4]) -> Result<(), SimError> {
+    fn read(
+        &mut self,
+        field: NodeField,
+        range: Range<usize>,
+        out: &mut [Vec4],
+    ) -> Result<(), SimError> {
         check_range(&range, self.capacity(), "allocated")?;
         let src = match field {
             NodeField::Position => &self.tissue.state.positions,
@@ -245,7 +268,12 @@ impl Backend for CpuBackend {
         Ok(())
     }
 
-    fn write_neighbour_rows(&mut self, first: usize, index: &[u32], weight: &[f32]) -> Result<(), SimError> {
+    fn write_neighbour_rows(
+        &mut self,
+        first: usize,
+        index: &[u32],
+        weight: &[f32],
+    ) -> Result<(), SimError> {
         let k = self.tissue.neighbours.k;
         if index.len() % k != 0 || weight.len() != index.len() {
             return Err(SimError::BadRowLength {

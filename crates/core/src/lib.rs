@@ -15,6 +15,8 @@
 //! ```
 
 #![warn(missing_docs)]
+// Index loops over x, y, z and over neighbour slots read closer to the equations.
+#![allow(clippy::needless_range_loop)]
 
 pub mod backend;
 pub mod cpu;

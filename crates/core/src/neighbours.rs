@@ -38,7 +38,12 @@ pub struct NeighbourStats {
 impl Neighbours {
     /// Builds K-nearest neighbour lists with weights and the mutuality rule for `points`,
     /// with rows for `capacity >= points.len()` nodes (extra rows empty).
-    pub fn build(points: &[[f64; 3]], k: usize, kernel: WeightKernel, capacity: usize) -> Neighbours {
+    pub fn build(
+        points: &[[f64; 3]],
+        k: usize,
+        kernel: WeightKernel,
+        capacity: usize,
+    ) -> Neighbours {
         let n = points.len();
         assert!(k < n, "need more nodes than neighbours per node");
         let grid = UniformGrid::new(points, k);
@@ -68,7 +73,10 @@ impl Neighbours {
 
     /// The slots of node `i`: `(indices, weights)`.
     pub fn row(&self, i: usize) -> (&[u32], &[f32]) {
-        (&self.index[i * self.k..(i + 1) * self.k], &self.weight[i * self.k..(i + 1) * self.k])
+        (
+            &self.index[i * self.k..(i + 1) * self.k],
+            &self.weight[i * self.k..(i + 1) * self.k],
+        )
     }
 
     /// Statistics over the first `n` nodes.
@@ -156,8 +164,11 @@ impl UniformGrid {
         // Guard flat sets: give every axis at least a 1e-3 share of the largest extent.
         let vol: f64 = ext.iter().map(|e| e.max(1e-3 * scale)).product();
         let per_cell = (k as f64 / 4.0).max(1.0);
-        let cell = (vol * per_cell / points.len().max(1) as f64).cbrt().max(1e-12);
-        let dims: [usize; 3] = std::array::from_fn(|a| ((ext[a] / cell).floor() as usize + 1).min(1 << 20));
+        let cell = (vol * per_cell / points.len().max(1) as f64)
+            .cbrt()
+            .max(1e-12);
+        let dims: [usize; 3] =
+            std::array::from_fn(|a| ((ext[a] / cell).floor() as usize + 1).min(1 << 20));
         let n_cells = dims[0] * dims[1] * dims[2];
         let mut grid = UniformGrid {
             origin: lo,
@@ -166,7 +177,10 @@ impl UniformGrid {
             start: vec![0; n_cells + 1],
             items: vec![0; points.len()],
         };
-        let cells: Vec<usize> = points.iter().map(|p| grid.cell_index(grid.cell_of(*p))).collect();
+        let cells: Vec<usize> = points
+            .iter()
+            .map(|p| grid.cell_index(grid.cell_of(*p)))
+            .collect();
         for &c in &cells {
             grid.start[c + 1] += 1;
         }
@@ -227,7 +241,8 @@ impl UniformGrid {
     fn visit_ring(&self, home: [usize; 3], ring: usize, mut f: impl FnMut(u32)) {
         let r = ring as isize;
         let lo: [isize; 3] = std::array::from_fn(|a| (home[a] as isize - r).max(0));
-        let hi: [isize; 3] = std::array::from_fn(|a| (home[a] as isize + r).min(self.dims[a] as isize - 1));
+        let hi: [isize; 3] =
+            std::array::from_fn(|a| (home[a] as isize + r).min(self.dims[a] as isize - 1));
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
@@ -266,10 +281,14 @@ mod tests {
     fn pseudo_random_points(n: usize, seed: u64) -> Vec<[f64; 3]> {
         let mut s = seed;
         let mut next = move || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
-        (0..n).map(|_| [next(), next() * 0.5, next() * 2.0]).collect()
+        (0..n)
+            .map(|_| [next(), next() * 0.5, next() * 2.0])
+            .collect()
     }
 
     #[test]
@@ -281,7 +300,12 @@ mod tests {
             grid.k_nearest(&pts, pts[i], 16, Some(i), &mut out);
             let mut brute: Vec<(f64, u32)> = (0..pts.len())
                 .filter(|&j| j != i)
-                .map(|j| ((0..3).map(|a| (pts[j][a] - pts[i][a]).powi(2)).sum(), j as u32))
+                .map(|j| {
+                    (
+                        (0..3).map(|a| (pts[j][a] - pts[i][a]).powi(2)).sum(),
+                        j as u32,
+                    )
+                })
                 .collect();
             brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
             brute.truncate(16);

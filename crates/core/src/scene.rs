@@ -207,7 +207,8 @@ pub struct MassSpringParams {
 pub struct ShapeMatchingParams {
     /// Restoring stiffness k_s in N/m of `f = k_s (g - x)`.
     pub stiffness: f64,
-    /// Most quaternion iterations per step of the rotation extraction (warm started).
+    /// Most quaternion iterations per step of the rotation extraction, warm started from
+    /// the previous step (default 2).
     #[serde(default = "default_rotation_iterations")]
     pub rotation_iterations: u32,
     /// Which nodes a cluster pulls: `node` (the paper) or `cluster` (conservative).
@@ -228,8 +229,11 @@ pub enum ShapeMatchingForces {
     Cluster,
 }
 
+/// Warm started from the previous step, the rotation moves little per step; two
+/// iterations keep it converged while halving the cost of eight (measured on the
+/// 10932-node bench).
 fn default_rotation_iterations() -> u32 {
-    8
+    2
 }
 
 impl Material {
@@ -391,12 +395,23 @@ where
     let mut t = toml::Table::deserialize(d)?;
     let name = match t.remove(tag) {
         Some(toml::Value::String(s)) => s,
-        Some(other) => return Err(D::Error::custom(format!("`{table}.{tag}` must be a string, got {other}"))),
+        Some(other) => {
+            return Err(D::Error::custom(format!(
+                "`{table}.{tag}` must be a string, got {other}"
+            )))
+        }
         None => return Err(D::Error::custom(format!("`{table}` needs the key `{tag}`"))),
     };
     match pick(&name, toml::Value::Table(t)) {
-        Some(r) => r.map_err(|e| D::Error::custom(format!("`{table}` ({tag} = \"{name}\"): {}", e.to_string().trim_end().replace('\n', " ")))),
-        None => Err(D::Error::custom(format!("`{table}.{tag}`: unknown variant `{name}`"))),
+        Some(r) => r.map_err(|e| {
+            D::Error::custom(format!(
+                "`{table}` ({tag} = \"{name}\"): {}",
+                e.to_string().trim_end().replace('\n', " ")
+            ))
+        }),
+        None => Err(D::Error::custom(format!(
+            "`{table}.{tag}`: unknown variant `{name}`"
+        ))),
     }
 }
 
@@ -419,7 +434,10 @@ fn de_geometry<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Geometry, D::Er
 fn de_weight<'de, D: serde::Deserializer<'de>>(d: D) -> Result<WeightKernel, D::Error> {
     de_tagged(d, "tissue.weight", "kernel", |name, v| match name {
         "uniform" => Some(v.try_into::<NoParams>().map(|_| WeightKernel::Uniform)),
-        "poly6" => Some(v.try_into::<Poly6Params>().map(|p| WeightKernel::Poly6 { support: p.support })),
+        "poly6" => Some(
+            v.try_into::<Poly6Params>()
+                .map(|p| WeightKernel::Poly6 { support: p.support }),
+        ),
         _ => None,
     })
 }
@@ -484,7 +502,10 @@ impl Scene {
                     if max[a] <= min[a] {
                         return Err(SceneError::invalid(
                             "tissue.geometry.max",
-                            format!("must exceed min along every axis (axis {a}: {} <= {})", max[a], min[a]),
+                            format!(
+                                "must exceed min along every axis (axis {a}: {} <= {})",
+                                max[a], min[a]
+                            ),
                         ));
                     }
                 }
@@ -495,10 +516,14 @@ impl Scene {
                         if *h > shortest {
                             return Err(SceneError::invalid(
                                 "tissue.geometry.spacing",
-                                format!("{h} m is larger than the box's shortest side {shortest} m"),
+                                format!(
+                                    "{h} m is larger than the box's shortest side {shortest} m"
+                                ),
                             ));
                         }
-                        let count: f64 = (0..3).map(|a| ((max[a] - min[a]) / h).floor() + 1.0).product();
+                        let count: f64 = (0..3)
+                            .map(|a| ((max[a] - min[a]) / h).floor() + 1.0)
+                            .product();
                         if count > 5.0e7 {
                             return Err(SceneError::invalid(
                                 "tissue.geometry.spacing",
@@ -571,7 +596,10 @@ impl Scene {
             positive_finite("initial.stretch", s)?;
         }
         if self.run.output_every == 0 {
-            return Err(SceneError::invalid("run.output_every", "must be at least 1"));
+            return Err(SceneError::invalid(
+                "run.output_every",
+                "must be at least 1",
+            ));
         }
         Ok(())
     }
@@ -589,7 +617,10 @@ fn positive_finite(key: &str, v: f64) -> Result<(), SceneError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(SceneError::invalid(key, format!("must be a finite number > 0, got {v}")))
+        Err(SceneError::invalid(
+            key,
+            format!("must be a finite number > 0, got {v}"),
+        ))
     }
 }
 
@@ -597,6 +628,9 @@ fn non_negative_finite(key: &str, v: f64) -> Result<(), SceneError> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
-        Err(SceneError::invalid(key, format!("must be a finite number >= 0, got {v}")))
+        Err(SceneError::invalid(
+            key,
+            format!("must be a finite number >= 0, got {v}"),
+        ))
     }
 }

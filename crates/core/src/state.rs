@@ -48,7 +48,10 @@ impl NodeState {
             .map(|i| {
                 let v = self.velocities[i];
                 let m = 1.0 / self.positions[i][3] as f64;
-                0.5 * m * (v[0] as f64 * v[0] as f64 + v[1] as f64 * v[1] as f64 + v[2] as f64 * v[2] as f64)
+                0.5 * m
+                    * (v[0] as f64 * v[0] as f64
+                        + v[1] as f64 * v[1] as f64
+                        + v[2] as f64 * v[2] as f64)
             })
             .sum()
     }

@@ -51,7 +51,11 @@ impl Tissue {
         let n = cloud.positions.len();
         let k = scene.tissue.neighbours;
         if n < k + 1 {
-            return Err(GeometryError::TooFewNodes { nodes: n, neighbours: k }.into());
+            return Err(GeometryError::TooFewNodes {
+                nodes: n,
+                neighbours: k,
+            }
+            .into());
         }
         let capacity = n + extra;
         let neighbours = Neighbours::build(&cloud.positions, k, scene.tissue.weight, capacity);
@@ -99,7 +103,8 @@ impl Tissue {
                 } else if s == [1.0; 3] {
                     [p[0] as f32, p[1] as f32, p[2] as f32, inv_mass]
                 } else {
-                    let q: [f64; 3] = std::array::from_fn(|a| centre[a] + s[a] * (p[a] - centre[a]));
+                    let q: [f64; 3] =
+                        std::array::from_fn(|a| centre[a] + s[a] * (p[a] - centre[a]));
                     [q[0] as f32, q[1] as f32, q[2] as f32, inv_mass]
                 }
             })

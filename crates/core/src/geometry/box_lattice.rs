@@ -58,7 +58,11 @@ impl BoxLattice {
         for combo in 0..8 {
             let dims: [usize; 3] = std::array::from_fn(|a| {
                 let x = ratio[a] * t + 1.0;
-                let n = if combo >> a & 1 == 0 { x.floor() } else { x.ceil() };
+                let n = if combo >> a & 1 == 0 {
+                    x.floor()
+                } else {
+                    x.ceil()
+                };
                 (n as usize).max(2)
             });
             let n = dims.iter().product::<usize>();
@@ -175,7 +179,11 @@ mod tests {
         let v = signed_volume(&c.positions, &c.triangles);
         assert!((v - c.volume).abs() < 1e-12, "{v} vs {}", c.volume);
         assert!((c.volume - 0.02 * 0.03 * 0.04).abs() < 1e-12);
-        crate::geometry::obj::check_closed_manifold(std::path::Path::new("box"), c.positions.len(), &c.triangles)
-            .unwrap();
+        crate::geometry::obj::check_closed_manifold(
+            std::path::Path::new("box"),
+            c.positions.len(),
+            &c.triangles,
+        )
+        .unwrap();
     }
 }

@@ -28,19 +28,23 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| GeometryError::ObjLoad {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let (models, _materials) =
+        tobj::load_obj(path, &options).map_err(|e| GeometryError::ObjLoad {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
     let mut raw_vertices: Vec<[f64; 3]> = Vec::new();
     let mut raw_triangles: Vec<[u32; 3]> = Vec::new();
     for model in &models {
         let mesh = &model.mesh;
         let offset = raw_vertices.len() as u32;
         for (i, p) in mesh.positions.chunks_exact(3).enumerate() {
-            let v = [p[0] as f64 * scale, p[1] as f64 * scale, p[2] as f64 * scale];
+            let v = [
+                p[0] as f64 * scale,
+                p[1] as f64 * scale,
+                p[2] as f64 * scale,
+            ];
             if !v.iter().all(|c| c.is_finite()) {
                 return Err(GeometryError::NonFiniteVertex {
                     path: path.to_path_buf(),

@@ -76,16 +76,17 @@ pub fn cluster_frame(
     iterations: u32,
     rotation: Vec4,
 ) -> (Vec4, Vec4) {
+    // One pass over the cluster: with offsets d_j = x_j - x_i and d0_j = x0_j - x0_i
+    // (the node itself has d = d0 = 0, weight 1),
+    // A = sum w (d - c)(d0 - c0)^T = sum w d d0^T - c (sum w d0)^T.
     let k = nb.k;
     let xi = positions[i];
     let x0i = rest[i];
-    let c = centre_offset(i, positions, nb);
-    let c0 = [-shape_vector[0], -shape_vector[1], -shape_vector[2], 0.0];
-    // The node itself: d = 0, d0 = 0, weight 1.
-    let p = [-c[0], -c[1], -c[2]];
-    let q = [-c0[0], -c0[1], -c0[2]];
-    let mut a: Mat3 = std::array::from_fn(|r| std::array::from_fn(|s| p[r] * q[s]));
-    let mut scale = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+    let mut wsum = 1.0f32;
+    let mut sd = [0.0f32; 3];
+    let mut sd0 = [0.0f32; 3];
+    let mut sdd0 = 0.0f32;
+    let mut m: Mat3 = [[0.0; 3]; 3];
     for s in 0..k {
         let w = nb.weight[i * k + s];
         if w == 0.0 {
@@ -94,23 +95,25 @@ pub fn cluster_frame(
         let j = nb.index[i * k + s] as usize;
         let d = sub(positions[j], xi);
         let d0 = sub(rest[j], x0i);
-        let p = [d[0] - c[0], d[1] - c[1], d[2] - c[2]];
-        let q = [w * (d0[0] - c0[0]), w * (d0[1] - c0[1]), w * (d0[2] - c0[2])];
+        let wd0 = [w * d0[0], w * d0[1], w * d0[2]];
         for r in 0..3 {
+            sd[r] += w * d[r];
+            sd0[r] += wd0[r];
             for t in 0..3 {
-                a[r][t] += p[r] * q[t];
+                m[r][t] += d[r] * wd0[t];
             }
         }
-        scale += q[0] * (d0[0] - c0[0]) + q[1] * (d0[1] - c0[1]) + q[2] * (d0[2] - c0[2]);
+        sdd0 += wd0[0] * d0[0] + wd0[1] * d0[1] + wd0[2] * d0[2];
+        wsum += w;
     }
-    if scale > 0.0 {
-        let inv = 1.0 / scale;
-        for row in a.iter_mut() {
-            for x in row.iter_mut() {
-                *x *= inv;
-            }
-        }
-    }
+    let inv_w = 1.0 / wsum;
+    let c = [sd[0] * inv_w, sd[1] * inv_w, sd[2] * inv_w, 0.0];
+    let c0 = [-shape_vector[0], -shape_vector[1], -shape_vector[2]];
+    // sum w |d0 - c0|^2 = sum w |d0|^2 - 2 c0 . sum w d0 + W |c0|^2
+    let scale = sdd0 - 2.0 * (c0[0] * sd0[0] + c0[1] * sd0[1] + c0[2] * sd0[2])
+        + wsum * (c0[0] * c0[0] + c0[1] * c0[1] + c0[2] * c0[2]);
+    let inv = if scale > 0.0 { 1.0 / scale } else { 1.0 };
+    let a: Mat3 = std::array::from_fn(|r| std::array::from_fn(|t| (m[r][t] - c[r] * sd0[t]) * inv));
     (c, extract_rotation(&a, rotation, iterations))
 }
 

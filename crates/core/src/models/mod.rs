@@ -51,7 +51,8 @@ impl ShapeInfo {
                 rest_length: mass_spring::rest_lengths(rest, nb, n),
             },
             Material::LocalShapeMatching(ShapeMatchingParams { forces, .. }) => {
-                let rest_position: Vec<Vec4> = rest.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
+                let rest_position: Vec<Vec4> =
+                    rest.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
                 let mut shape_vector = vec![[0.0f32; 4]; capacity];
                 for (i, v) in shape_vector.iter_mut().enumerate().take(n) {
                     *v = local_shape_matching::shape_vector(i, &rest_position, nb);
@@ -60,7 +61,8 @@ impl ShapeInfo {
                     rest_position,
                     shape_vector,
                     rotation: vec![QUAT_IDENTITY; capacity],
-                    cluster_centre: (*forces == ShapeMatchingForces::Cluster).then(|| vec![[0.0; 4]; capacity]),
+                    cluster_centre: (*forces == ShapeMatchingForces::Cluster)
+                        .then(|| vec![[0.0; 4]; capacity]),
                 }
             }
         }
@@ -83,18 +85,18 @@ impl ShapeInfo {
                 cluster_centre,
             } => {
                 let mut v = vec![
-                ArrayInfo {
-                    name: "rest_position",
-                    bytes: bytes(rest_position),
-                },
-                ArrayInfo {
-                    name: "shape_vector",
-                    bytes: bytes(shape_vector),
-                },
-                ArrayInfo {
-                    name: "rotation",
-                    bytes: bytes(rotation),
-                },
+                    ArrayInfo {
+                        name: "rest_position",
+                        bytes: bytes(rest_position),
+                    },
+                    ArrayInfo {
+                        name: "shape_vector",
+                        bytes: bytes(shape_vector),
+                    },
+                    ArrayInfo {
+                        name: "rotation",
+                        bytes: bytes(rotation),
+                    },
                 ];
                 if let Some(c) = cluster_centre {
                     v.push(ArrayInfo {
