@@ -20,11 +20,10 @@ const CHUNK: usize = 256;
 pub enum Threading {
     /// One thread.
     Single,
-    /// A rayon pool: `None` uses the global pool (all hardware threads), `Some(n)` a pool of
-    /// n threads owned by the backend.
+    /// rayon's global pool (all hardware threads).
     #[default]
     Parallel,
-    /// A pool of exactly this many threads.
+    /// A pool of exactly this many threads, owned by the backend.
     Threads(usize),
 }
 
