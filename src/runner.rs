@@ -204,10 +204,19 @@ pub fn run_scene(
     let mut step_time = Duration::ZERO;
     let mut done = 0u64;
     loop {
-        backend.check_finite()?;
         backend.read(NodeField::Position, 0..n, &mut pos)?;
         backend.read(NodeField::Velocity, 0..n, &mut vel)?;
         backend.read(NodeField::Force, 0..n, &mut force)?;
+        for (buf, field) in [(&pos, "position"), (&vel, "velocity")] {
+            if let Some(node) = buf.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+                return Err(SimError::Diverged {
+                    step: done,
+                    node,
+                    field,
+                }
+                .into());
+            }
+        }
         let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
         if let Some(w) = csv.as_mut() {
             w.row(&m).map_err(io(&options.out_dir))?;
