@@ -208,7 +208,7 @@ pub fn run_scene(
         backend.read(NodeField::Velocity, 0..n, &mut vel)?;
         backend.read(NodeField::Force, 0..n, &mut force)?;
         for (buf, field) in [(&pos, "position"), (&vel, "velocity")] {
-            if let Some(node) = buf.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            if let Some(node) = needlesim_core::backend::first_non_finite(buf) {
                 return Err(SimError::Diverged {
                     step: done,
                     node,

@@ -69,7 +69,7 @@ pub trait Backend {
             (NodeField::Velocity, "velocity"),
         ] {
             self.read(field, 0..n, &mut buf)?;
-            if let Some(node) = buf.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            if let Some(node) = first_non_finite(&buf) {
                 return Err(SimError::Diverged {
                     step: self.steps_taken(),
                     node,
@@ -79,6 +79,11 @@ pub trait Backend {
         }
         Ok(())
     }
+}
+
+/// Index of the first vector with a NaN or infinite lane.
+pub fn first_non_finite(v: &[Vec4]) -> Option<usize> {
+    v.iter().position(|p| !p.iter().all(|c| c.is_finite()))
 }
 
 /// Checks that `range` lies within `limit` nodes.
