@@ -1,5 +1,6 @@
 //! Physical checks of the CPU tissue models (mass-spring, local shape matching in the
-//! paper's per-node form and in the conservative cluster form).
+//! paper's per-node form and in the conservative cluster form, Debunne meshfree FEM plain
+//! and co-rotated, point based animation).
 
 mod common;
 use common::*;
@@ -20,7 +21,7 @@ fn stretched_force_scale(material: &str) -> f64 {
 
 #[test]
 fn rest_state_is_an_equilibrium() {
-    for (label, material) in MODELS {
+    for (label, material) in all_models() {
         let scale = stretched_force_scale(material);
         let scene = cube_scene(material, 639, 0.0, [1.0; 3]);
         let mut b = backend(&scene, Threading::Single);
@@ -91,13 +92,17 @@ fn rigid_rotation_gives_zero_force() {
     }
 }
 
-/// A free cube stretched by 30% along x and released comes back to its rest shape (up to
-/// the rigid translation, which is zero here by symmetry) within 1% of its edge.
+/// A free cube stretched by 30% along x and released comes back to its rest shape within
+/// 1% of its edge, after removing the best-fit rigid motion: a deformable body with zero
+/// angular momentum may still end up turned (measured: about 0.01 rad for the mass-spring
+/// cube, whose lattice neighbourhoods couple stretch and shear).
 #[test]
 fn stretched_cube_returns_to_rest() {
+    use needlesim::core::math::{quat_to_mat, QUAT_IDENTITY};
+    use needlesim::core::models::mueller2016_rotation::extract_rotation;
     // Damping 20/s: enough for the paper's non-conservative shape matching forces at
     // k_s = 20 N/m (see local_shape_matching module docs).
-    for (label, material) in MODELS {
+    for (label, material) in all_models() {
         let scene = cube_scene(material, 639, 20.0, [1.3, 1.0, 1.0]);
         let rest = rest_positions(&scene);
         let mut b = backend(&scene, Threading::Parallel);
@@ -105,13 +110,28 @@ fn stretched_cube_returns_to_rest() {
         b.check_finite().unwrap();
         let p = read(&mut b, NodeField::Position);
         let n = rest.len();
-        let shift: [f64; 3] = std::array::from_fn(|a| {
-            (0..n).map(|i| p[i][a] as f64 - rest[i][a]).sum::<f64>() / n as f64
-        });
+        let cp: [f64; 3] =
+            std::array::from_fn(|a| (0..n).map(|i| p[i][a] as f64).sum::<f64>() / n as f64);
+        let cr: [f64; 3] =
+            std::array::from_fn(|a| (0..n).map(|i| rest[i][a]).sum::<f64>() / n as f64);
+        // Best-fit rotation: the rotation of the polar decomposition of sum (p - cp)(r - cr)^T.
+        let mut m = [[0.0f32; 3]; 3];
+        for i in 0..n {
+            for r in 0..3 {
+                for c in 0..3 {
+                    m[r][c] += ((p[i][r] as f64 - cp[r]) * (rest[i][c] - cr[c])) as f32;
+                }
+            }
+        }
+        let rot = quat_to_mat(extract_rotation(&m, QUAT_IDENTITY, 500));
         let worst = (0..n)
             .map(|i| {
+                let d: [f64; 3] = std::array::from_fn(|a| rest[i][a] - cr[a]);
                 (0..3)
-                    .map(|a| (p[i][a] as f64 - rest[i][a] - shift[a]).powi(2))
+                    .map(|a| {
+                        let rd: f64 = (0..3).map(|c| rot[a][c] as f64 * d[c]).sum();
+                        (p[i][a] as f64 - cp[a] - rd).powi(2)
+                    })
                     .sum::<f64>()
                     .sqrt()
             })
@@ -120,6 +140,7 @@ fn stretched_cube_returns_to_rest() {
             worst < 0.01 * 0.1,
             "{label}: max distance from rest shape {worst:e} m"
         );
+        let shift: [f64; 3] = std::array::from_fn(|a| cp[a] - cr[a]);
         assert!(
             shift.iter().all(|s| s.abs() < 1e-4),
             "{label}: drifted {shift:?}"
@@ -127,11 +148,12 @@ fn stretched_cube_returns_to_rest() {
     }
 }
 
-/// Mass-spring and cluster shape matching conserve momentum: the forces sum to zero up to
-/// f32 summation round-off (1e-5 of the sum of force magnitudes).
+/// Mass-spring, cluster shape matching and the two energy-based continuum models conserve
+/// momentum: the forces sum to zero up to f32 summation round-off (1e-5 of the sum of
+/// force magnitudes).
 #[test]
 fn momentum_conserving_forces_sum_to_zero() {
-    for (label, material) in [MODELS[0], MODELS[2]] {
+    for (label, material) in [MODELS[0], MODELS[2], MODELS[3], MODELS[4], LINEAR_DEB] {
         let scene = cube_scene(material, 639, 0.0, [1.3, 0.9, 1.1]);
         let mut b = backend(&scene, Threading::Single);
         // Shear it too, so the check does not rely on the stretch's symmetry.
@@ -156,7 +178,7 @@ fn momentum_conserving_forces_sum_to_zero() {
 /// the issue asks for 1e-5 relative after 1000 steps.
 #[test]
 fn single_and_multi_threaded_agree() {
-    for (label, material) in MODELS {
+    for (label, material) in all_models() {
         let scene = cube_scene(material, 639, 5.0, [1.3, 1.0, 1.0]);
         let mut one = backend(&scene, Threading::Single);
         let mut two = backend(&scene, Threading::Threads(2));

@@ -3,8 +3,8 @@ use needlesim::core::geometry;
 use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
 use std::path::Path;
 
-/// The three force models under test: (label, [material] table body).
-pub const MODELS: [(&str, &str); 3] = [
+/// The rotation-invariant force models under test: (label, [material] table body).
+pub const MODELS: [(&str, &str); 5] = [
     (
         "msm",
         "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.0",
@@ -17,7 +17,26 @@ pub const MODELS: [(&str, &str); 3] = [
         "lshm-cluster",
         "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
     ),
+    (
+        "deb-corotated",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\ncorotated = true",
+    ),
+    (
+        "pba",
+        "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
+    ),
 ];
+
+/// The plain (linear, not co-rotated) Debunne model: not rotation invariant.
+pub const LINEAR_DEB: (&str, &str) = (
+    "deb",
+    "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
+);
+
+/// Every model variant.
+pub fn all_models() -> Vec<(&'static str, &'static str)> {
+    MODELS.iter().copied().chain([LINEAR_DEB]).collect()
+}
 
 /// A free 10 cm cube of about `nodes` nodes with the given material, damping and stretch.
 pub fn cube_scene(material: &str, nodes: usize, damping: f64, stretch: [f64; 3]) -> Scene {

@@ -5,9 +5,14 @@
 use crate::backend::{check_range, Backend, NodeField};
 use crate::error::SimError;
 use crate::integrator::integrate_node;
+use crate::math::quat_to_mat;
 use crate::math::Vec4;
-use crate::models::{local_shape_matching, mass_spring, ShapeInfo};
-use crate::scene::{MassSpringParams, Material, ShapeMatchingParams};
+use crate::models::{
+    debunne_meshfree, local_shape_matching, mass_spring, mls, point_based, Corotation, ShapeInfo,
+};
+use crate::scene::{
+    lame, DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
+};
 use crate::tissue::Tissue;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -215,6 +220,114 @@ impl Backend for CpuBackend {
                         });
                     }
                 }
+            }
+            (
+                Material::DebunneMeshfree(DebunneParams {
+                    young_modulus,
+                    poisson_ratio,
+                    rotation_iterations,
+                    hourglass,
+                    ..
+                }),
+                ShapeInfo::DebunneMeshfree {
+                    rest_position,
+                    inverse_moment,
+                    node_volume,
+                    first_pass,
+                    corotation,
+                },
+            ) => {
+                let (lambda, mu) = lame(*young_modulus, *poisson_ratio);
+                let (lambda, mu, hg) = (lambda as f32, mu as f32, (*hourglass * mu) as f32);
+                let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], *node_volume);
+                match corotation {
+                    None => {
+                        let mut unit = vec![(); n];
+                        for_each_node(
+                            pool,
+                            self.parallel,
+                            &mut first_pass[..n],
+                            &mut unit,
+                            |i, q, _| {
+                                *q = debunne_meshfree::first_pass(
+                                    i, pos, rest, nb, &a_inv[i], vol, lambda, mu, hg, None,
+                                );
+                            },
+                        );
+                    }
+                    Some(Corotation {
+                        shape_vector,
+                        rotation,
+                    }) => {
+                        let (sv, iters) = (&shape_vector[..], *rotation_iterations);
+                        for_each_node(
+                            pool,
+                            self.parallel,
+                            &mut first_pass[..n],
+                            &mut rotation[..n],
+                            |i, q, rot| {
+                                let (_, r) = local_shape_matching::cluster_frame(
+                                    i, pos, rest, sv[i], nb, iters, *rot,
+                                );
+                                *rot = r;
+                                *q = debunne_meshfree::first_pass(
+                                    i,
+                                    pos,
+                                    rest,
+                                    nb,
+                                    &a_inv[i],
+                                    vol,
+                                    lambda,
+                                    mu,
+                                    hg,
+                                    Some(&quat_to_mat(r)),
+                                );
+                            },
+                        );
+                    }
+                }
+                let first = &first_pass[..];
+                let mut unit = vec![(); n];
+                for_each_node(pool, self.parallel, forces, &mut unit, |i, f, _| {
+                    *f = mls::gather_force(i, pos, rest, nb, first);
+                });
+            }
+            (
+                Material::PointBased(PointBasedParams {
+                    young_modulus,
+                    poisson_ratio,
+                    volume_stiffness,
+                    hourglass,
+                }),
+                ShapeInfo::PointBased {
+                    rest_position,
+                    inverse_moment,
+                    volume,
+                    first_pass,
+                },
+            ) => {
+                let (lambda, mu) = lame(*young_modulus, *poisson_ratio);
+                let c = point_based::PointBasedConstants {
+                    lambda: lambda as f32,
+                    mu: mu as f32,
+                    volume_stiffness: *volume_stiffness as f32,
+                    hourglass: (*hourglass * mu) as f32,
+                };
+                let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], &volume[..]);
+                let mut unit = vec![(); n];
+                for_each_node(
+                    pool,
+                    self.parallel,
+                    &mut first_pass[..n],
+                    &mut unit,
+                    |i, q, _| {
+                        *q = point_based::first_pass(i, pos, rest, nb, &a_inv[i], vol[i], &c);
+                    },
+                );
+                let first = &first_pass[..];
+                for_each_node(pool, self.parallel, forces, &mut unit, |i, f, _| {
+                    *f = mls::gather_force(i, pos, rest, nb, first);
+                });
             }
             (m, s) => unreachable!("material {m:?} built with shape info {:?}", s.arrays()),
         }

@@ -106,6 +106,85 @@ pub fn quat_from_axis_angle(axis: [f32; 3], angle: f32) -> Vec4 {
 /// The identity quaternion.
 pub const QUAT_IDENTITY: Vec4 = [0.0, 0.0, 0.0, 1.0];
 
+/// Eigen-decomposition of a symmetric `n x n` matrix (row-major, f64) by cyclic Jacobi
+/// rotations: returns the eigenvalues and the eigenvectors as the columns of a row-major
+/// matrix. Used only when building shape information, never per step.
+pub fn sym_eigen(n: usize, a: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut m = a.to_vec();
+    let mut v = vec![0.0; n * n];
+    for i in 0..n {
+        v[i * n + i] = 1.0;
+    }
+    let scale: f64 = m.iter().map(|x| x * x).sum::<f64>().sqrt();
+    for _sweep in 0..100 {
+        let off: f64 = (0..n)
+            .flat_map(|p| (0..n).filter(move |&q| q != p).map(move |q| (p, q)))
+            .map(|(p, q)| m[p * n + q] * m[p * n + q])
+            .sum::<f64>()
+            .sqrt();
+        if off <= 1e-15 * scale || scale == 0.0 {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = m[p * n + q];
+                if apq == 0.0 {
+                    continue;
+                }
+                let theta = (m[q * n + q] - m[p * n + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                // m <- J^T m J with J the rotation in the (p, q) plane.
+                for k in 0..n {
+                    let mkp = m[k * n + p];
+                    let mkq = m[k * n + q];
+                    m[k * n + p] = c * mkp - s * mkq;
+                    m[k * n + q] = s * mkp + c * mkq;
+                }
+                for k in 0..n {
+                    let mpk = m[p * n + k];
+                    let mqk = m[q * n + k];
+                    m[p * n + k] = c * mpk - s * mqk;
+                    m[q * n + k] = s * mpk + c * mqk;
+                }
+                for k in 0..n {
+                    let vkp = v[k * n + p];
+                    let vkq = v[k * n + q];
+                    v[k * n + p] = c * vkp - s * vkq;
+                    v[k * n + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    ((0..n).map(|i| m[i * n + i]).collect(), v)
+}
+
+/// Truncated pseudo-inverse of a symmetric positive semi-definite `n x n` matrix:
+/// eigen-directions whose eigenvalue is below `rel_tol` times the largest are dropped
+/// (their inverse is taken as 0), so a flat or collinear point set gives a bounded
+/// inverse instead of a huge one. Returns the inverse and the number of directions kept.
+pub fn sym_pseudo_inverse(n: usize, a: &[f64], rel_tol: f64) -> (Vec<f64>, usize) {
+    let (vals, vecs) = sym_eigen(n, a);
+    let max = vals.iter().cloned().fold(0.0, f64::max);
+    let mut out = vec![0.0; n * n];
+    let mut rank = 0;
+    for e in 0..n {
+        if !(max > 0.0) || vals[e] <= rel_tol * max {
+            continue;
+        }
+        rank += 1;
+        let inv = 1.0 / vals[e];
+        for r in 0..n {
+            for c in 0..n {
+                out[r * n + c] += vecs[r * n + e] * inv * vecs[c * n + e];
+            }
+        }
+    }
+    (out, rank)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -129,5 +208,26 @@ mod tests {
         for k in 0..4 {
             assert!((c[k] - d[k]).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn pseudo_inverse_inverts_full_rank_and_drops_flat_directions() {
+        let a = [4.0, 1.0, 0.0, 1.0, 3.0, 0.5, 0.0, 0.5, 2.0];
+        let (inv, rank) = sym_pseudo_inverse(3, &a, 1e-9);
+        assert_eq!(rank, 3);
+        for r in 0..3 {
+            for c in 0..3 {
+                let p: f64 = (0..3).map(|k| a[r * 3 + k] * inv[k * 3 + c]).sum();
+                assert!(
+                    (p - if r == c { 1.0 } else { 0.0 }).abs() < 1e-12,
+                    "{r}{c}: {p}"
+                );
+            }
+        }
+        // A flat point set (all in z = 0) has no z information: the z row stays 0.
+        let flat = [2.0, 0.5, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 1e-14];
+        let (inv, rank) = sym_pseudo_inverse(3, &flat, 1e-6);
+        assert_eq!(rank, 2);
+        assert!(inv[8].abs() < 1e-12 && inv.iter().all(|x| x.is_finite()));
     }
 }

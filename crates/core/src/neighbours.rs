@@ -207,7 +207,8 @@ impl UniformGrid {
     }
 
     /// The `k` nearest points to `p` (excluding index `exclude`), as `(squared distance,
-    /// index)` sorted by distance then index, written to `out`.
+    /// index)` sorted by distance, ties broken as described at [`closer`], written to
+    /// `out`.
     pub fn k_nearest(
         &self,
         points: &[[f64; 3]],
@@ -226,7 +227,7 @@ impl UniformGrid {
                 }
                 let q = points[idx as usize];
                 let d2 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>();
-                insert_sorted(out, k, (d2, idx));
+                insert_sorted(out, k, (d2, idx), |a, b| closer(points, p, a, b));
             });
             // Every point in ring r+1 or beyond is at least r * cell away from p.
             if out.len() == k {
@@ -262,8 +263,50 @@ impl UniformGrid {
     }
 }
 
-fn insert_sorted(out: &mut Vec<(f64, u32)>, k: usize, item: (f64, u32)) {
-    let less = |a: &(f64, u32), b: &(f64, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
+/// Whether candidate `a` (squared distance, index) comes before `b` as a neighbour of
+/// `p`. Squared distances within a relative 1e-9 are a tie (lattice offsets of equal
+/// length differ in the last bits after subtraction). Ties are broken by direction, in a
+/// point-symmetric way: offsets `e` and `-e` are ranked next to each other (by the
+/// canonical direction, the one of the two whose first non-zero component is positive),
+/// `+e` first, then by index (coincident points). So when the K-th distance cuts through a
+/// shell of equidistant lattice neighbours, every interior node keeps the same offsets,
+/// and keeps them in `+e, -e` pairs: the mutuality rule then leaves the neighbourhood
+/// point-symmetric with no direction missing on one side only. (Breaking ties by index
+/// instead keeps the lower-index side, and the mutuality rule then removes a whole
+/// diagonal direction on a cubic lattice.)
+fn closer(points: &[[f64; 3]], p: [f64; 3], a: &(f64, u32), b: &(f64, u32)) -> bool {
+    let scale = a.0.max(b.0);
+    if (a.0 - b.0).abs() > 1e-9 * scale {
+        return a.0 < b.0;
+    }
+    let tol = 1e-6 * scale.sqrt();
+    let canonical = |i: u32| -> ([f64; 3], bool) {
+        let q = points[i as usize];
+        let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+        match d.iter().find(|c| c.abs() > tol) {
+            Some(&c) if c < 0.0 => ([-d[0], -d[1], -d[2]], true),
+            _ => (d, false),
+        }
+    };
+    let (ca, na) = canonical(a.1);
+    let (cb, nb) = canonical(b.1);
+    for axis in 0..3 {
+        if (ca[axis] - cb[axis]).abs() > tol {
+            return ca[axis] < cb[axis];
+        }
+    }
+    if na != nb {
+        return !na;
+    }
+    a.1 < b.1
+}
+
+fn insert_sorted(
+    out: &mut Vec<(f64, u32)>,
+    k: usize,
+    item: (f64, u32),
+    less: impl Fn(&(f64, u32), &(f64, u32)) -> bool,
+) {
     if out.len() == k {
         if !less(&item, &out[k - 1]) {
             return;
@@ -307,7 +350,13 @@ mod tests {
                     )
                 })
                 .collect();
-            brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            brute.sort_by(|a, b| {
+                if closer(&pts, pts[i], a, b) {
+                    std::cmp::Ordering::Less
+                } else {
+                    std::cmp::Ordering::Greater
+                }
+            });
             brute.truncate(16);
             assert_eq!(out, brute, "node {i}");
         }

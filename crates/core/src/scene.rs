@@ -188,6 +188,65 @@ pub enum Material {
     MassSpring(MassSpringParams),
     /// `model = "local_shape_matching"`: one cluster per node (paper section 3).
     LocalShapeMatching(ShapeMatchingParams),
+    /// `model = "debunne_meshfree"`: linear elasticity, Navier's equation at every node
+    /// with point-set operators (Debunne et al. 1999).
+    DebunneMeshfree(DebunneParams),
+    /// `model = "point_based"`: point based animation (Mueller et al. 2004), Green strain
+    /// from a moving-least-squares displacement gradient.
+    PointBased(PointBasedParams),
+}
+
+/// Parameters of the Debunne meshfree model.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DebunneParams {
+    /// Young's modulus E in Pa.
+    pub young_modulus: f64,
+    /// Poisson ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Co-rotate the linear model with each node's shape matching rotation R_i:
+    /// `f_i = R_i sum_j K_ij (R_i^T (x_j - x_i) - (x0_j - x0_i))`. Off by default (the
+    /// paper's plain linear model, which does not survive large rotations).
+    #[serde(default)]
+    pub corotated: bool,
+    /// Quaternion iterations per step of the rotation extraction when `corotated`.
+    #[serde(default = "default_rotation_iterations")]
+    pub rotation_iterations: u32,
+    /// Hourglass control alpha (dimensionless): stiffness of the non-affine part of a
+    /// neighbourhood's motion, in units of `mu V_i / sum_j w_ij |x_ij|^2`.
+    #[serde(default = "default_hourglass")]
+    pub hourglass: f64,
+}
+
+/// Hourglass control on by default: without it zig-zag fields cost no energy.
+fn default_hourglass() -> f64 {
+    0.1
+}
+
+/// Parameters of point based animation.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PointBasedParams {
+    /// Young's modulus E in Pa.
+    pub young_modulus: f64,
+    /// Poisson ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Stiffness k_v in Pa of the volume-conserving energy `k_v/2 V (det F - 1)^2`
+    /// (Mueller et al. 2004, section 4.3); 0 (the default) switches it off.
+    #[serde(default)]
+    pub volume_stiffness: f64,
+    /// Hourglass control alpha, as for the Debunne model; 0 is the original method.
+    #[serde(default = "default_hourglass")]
+    pub hourglass: f64,
+}
+
+/// Lame parameters `(lambda, mu)` from Young's modulus and the Poisson ratio.
+pub fn lame(young_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
+    let (e, nu) = (young_modulus, poisson_ratio);
+    (
+        e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+        e / (2.0 * (1.0 + nu)),
+    )
 }
 
 /// Parameters of the weighted mass-spring model.
@@ -242,6 +301,8 @@ impl Material {
         match self {
             Material::MassSpring(_) => "msm",
             Material::LocalShapeMatching(_) => "lshm",
+            Material::DebunneMeshfree(_) => "deb",
+            Material::PointBased(_) => "pba",
         }
     }
 }
@@ -419,6 +480,8 @@ fn de_material<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Material, D::Er
     de_tagged(d, "material", "model", |name, v| match name {
         "mass_spring" => Some(v.try_into().map(Material::MassSpring)),
         "local_shape_matching" => Some(v.try_into().map(Material::LocalShapeMatching)),
+        "debunne_meshfree" => Some(v.try_into().map(Material::DebunneMeshfree)),
+        "point_based" => Some(v.try_into().map(Material::PointBased)),
         _ => None,
     })
 }
@@ -566,12 +629,28 @@ impl Scene {
                 ..
             }) => {
                 positive_finite("material.stiffness", stiffness)?;
-                if rotation_iterations == 0 || rotation_iterations > 100 {
-                    return Err(SceneError::invalid(
-                        "material.rotation_iterations",
-                        format!("must be between 1 and 100, got {rotation_iterations}"),
-                    ));
-                }
+                rotation_iterations_in_range(rotation_iterations)?;
+            }
+            Material::DebunneMeshfree(DebunneParams {
+                young_modulus,
+                poisson_ratio,
+                rotation_iterations,
+                hourglass,
+                ..
+            }) => {
+                elastic_moduli(young_modulus, poisson_ratio)?;
+                rotation_iterations_in_range(rotation_iterations)?;
+                non_negative_finite("material.hourglass", hourglass)?;
+            }
+            Material::PointBased(PointBasedParams {
+                young_modulus,
+                poisson_ratio,
+                volume_stiffness,
+                hourglass,
+            }) => {
+                elastic_moduli(young_modulus, poisson_ratio)?;
+                non_negative_finite("material.hourglass", hourglass)?;
+                non_negative_finite("material.volume_stiffness", volume_stiffness)?;
             }
         }
         let p = &self.physics;
@@ -603,6 +682,30 @@ impl Scene {
         }
         Ok(())
     }
+}
+
+fn rotation_iterations_in_range(n: u32) -> Result<(), SceneError> {
+    if n == 0 || n > 100 {
+        return Err(SceneError::invalid(
+            "material.rotation_iterations",
+            format!("must be between 1 and 100, got {n}"),
+        ));
+    }
+    Ok(())
+}
+
+fn elastic_moduli(young_modulus: f64, poisson_ratio: f64) -> Result<(), SceneError> {
+    positive_finite("material.young_modulus", young_modulus)?;
+    if !(poisson_ratio.is_finite() && poisson_ratio > -1.0 && poisson_ratio < 0.5) {
+        return Err(SceneError::invalid(
+            "material.poisson_ratio",
+            format!(
+                "must lie strictly between -1 and 0.5 (0.5 is incompressible, which an \
+                 explicit model cannot step), got {poisson_ratio}"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn finite(key: &str, v: f64) -> Result<(), SceneError> {

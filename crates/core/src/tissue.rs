@@ -84,7 +84,16 @@ impl Tissue {
             .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32, 0.0])
             .collect();
         rest.resize(capacity, [0.0; 4]);
-        let shape = ShapeInfo::build(&scene.material, &rest, &neighbours, n);
+        let shape = ShapeInfo::build(
+            &scene.material,
+            &rest,
+            &neighbours,
+            n,
+            crate::models::BuildContext {
+                triangles: &cloud.triangles,
+                volume: cloud.volume,
+            },
+        );
 
         // Initial deformation: scale the free nodes about their centroid.
         let free: Vec<usize> = (0..n).filter(|&i| !fixed[i]).collect();

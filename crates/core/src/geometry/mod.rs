@@ -79,6 +79,30 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
     }
 }
 
+/// Area vector of every node on the surface: `sum over its triangles of area * normal / 3`
+/// (outward), zero for nodes not on the surface. Its length is the node's share of the
+/// surface area. `positions` holds at least every triangle vertex.
+pub fn vertex_area_vectors(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let mut out = vec![[0.0; 3]; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        // cross / 2 is the area vector of the triangle; a third goes to each corner.
+        let n = [
+            (e1[1] * e2[2] - e1[2] * e2[1]) / 6.0,
+            (e1[2] * e2[0] - e1[0] * e2[2]) / 6.0,
+            (e1[0] * e2[1] - e1[1] * e2[0]) / 6.0,
+        ];
+        for v in t {
+            for a in 0..3 {
+                out[*v as usize][a] += n[a];
+            }
+        }
+    }
+    out
+}
+
 /// Signed volume enclosed by a closed, outward-oriented triangle surface (divergence
 /// theorem).
 pub fn signed_volume(vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {

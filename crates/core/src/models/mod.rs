@@ -3,13 +3,18 @@
 //!
 //! Only the chosen model's arrays are allocated.
 
+pub mod debunne_meshfree;
 pub mod local_shape_matching;
 pub mod mass_spring;
+pub mod mls;
 pub mod mueller2016_rotation;
+pub mod point_based;
 
 use crate::math::{Vec4, QUAT_IDENTITY};
 use crate::neighbours::Neighbours;
-use crate::scene::{Material, ShapeMatchingForces, ShapeMatchingParams};
+use crate::scene::{
+    DebunneParams, Material, PointBasedParams, ShapeMatchingForces, ShapeMatchingParams,
+};
 
 /// Per-model shape information arrays, sized for the full capacity.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,6 +35,50 @@ pub enum ShapeInfo {
         /// Cluster centre offsets c_i of the current step (`cluster` variant only).
         cluster_centre: Option<Vec<Vec4>>,
     },
+    /// Debunne meshfree linear elasticity: rest positions, inverse moment matrices, the
+    /// per-step first-pass result, plus the shape matching frame when co-rotated.
+    DebunneMeshfree {
+        /// Rest positions x0 (w = 0).
+        rest_position: Vec<Vec4>,
+        /// `A_i^-1`, row-major 3x3.
+        inverse_moment: Vec<[f32; 9]>,
+        /// Volume of every node, `m / rho`, in m^3.
+        node_volume: f32,
+        /// First-pass result of the current step ([`mls::pack_first_pass`]).
+        first_pass: Vec<[f32; 12]>,
+        /// Shape vectors and warm-start rotations (`corotated = true` only).
+        corotation: Option<Corotation>,
+    },
+    /// Point based animation: rest positions, inverse moment matrices, volumes and the
+    /// per-step first-pass result.
+    PointBased {
+        /// Rest positions x0 (w = 0).
+        rest_position: Vec<Vec4>,
+        /// `A_i^-1`, row-major 3x3 (the paper's Table 1).
+        inverse_moment: Vec<[f32; 9]>,
+        /// Node volumes V_i in m^3.
+        volume: Vec<f32>,
+        /// First-pass result of the current step ([`mls::pack_first_pass`]).
+        first_pass: Vec<[f32; 12]>,
+    },
+}
+
+/// The shape matching frame used to co-rotate the Debunne model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Corotation {
+    /// Shape vectors v = x0 - C0 (w = 0).
+    pub shape_vector: Vec<Vec4>,
+    /// Rotation quaternions `[x, y, z, w]` from the last step.
+    pub rotation: Vec<Vec4>,
+}
+
+/// What building shape information needs besides positions and neighbours.
+#[derive(Debug, Clone, Copy)]
+pub struct BuildContext<'a> {
+    /// Surface triangles over the mesh nodes.
+    pub triangles: &'a [[u32; 3]],
+    /// Volume enclosed by the surface in m^3.
+    pub volume: f64,
 }
 
 /// Name and size of one allocated array.
@@ -44,25 +93,59 @@ pub struct ArrayInfo {
 impl ShapeInfo {
     /// Builds the chosen model's shape information for the first `n` of `rest` (rest
     /// positions of all `capacity` slots).
-    pub fn build(material: &Material, rest: &[Vec4], nb: &Neighbours, n: usize) -> ShapeInfo {
+    pub fn build(
+        material: &Material,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        n: usize,
+        ctx: BuildContext,
+    ) -> ShapeInfo {
         let capacity = rest.len();
+        let rest_position =
+            || -> Vec<Vec4> { rest.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect() };
+        let shape_vectors = |rest_position: &[Vec4]| -> Vec<Vec4> {
+            let mut v = vec![[0.0f32; 4]; capacity];
+            for (i, v) in v.iter_mut().enumerate().take(n) {
+                *v = local_shape_matching::shape_vector(i, rest_position, nb);
+            }
+            v
+        };
         match material {
             Material::MassSpring(_) => ShapeInfo::MassSpring {
                 rest_length: mass_spring::rest_lengths(rest, nb, n),
             },
             Material::LocalShapeMatching(ShapeMatchingParams { forces, .. }) => {
-                let rest_position: Vec<Vec4> =
-                    rest.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
-                let mut shape_vector = vec![[0.0f32; 4]; capacity];
-                for (i, v) in shape_vector.iter_mut().enumerate().take(n) {
-                    *v = local_shape_matching::shape_vector(i, &rest_position, nb);
-                }
+                let rest_position = rest_position();
+                let shape_vector = shape_vectors(&rest_position);
                 ShapeInfo::LocalShapeMatching {
                     rest_position,
                     shape_vector,
                     rotation: vec![QUAT_IDENTITY; capacity],
                     cluster_centre: (*forces == ShapeMatchingForces::Cluster)
                         .then(|| vec![[0.0; 4]; capacity]),
+                }
+            }
+            Material::DebunneMeshfree(DebunneParams { corotated, .. }) => {
+                let rest_position = rest_position();
+                let corotation = corotated.then(|| Corotation {
+                    shape_vector: shape_vectors(&rest_position),
+                    rotation: vec![QUAT_IDENTITY; capacity],
+                });
+                ShapeInfo::DebunneMeshfree {
+                    inverse_moment: mls::inverse_moments(&rest_position, nb, n),
+                    rest_position,
+                    node_volume: (ctx.volume / n.max(1) as f64) as f32,
+                    first_pass: vec![[0.0; 12]; capacity],
+                    corotation,
+                }
+            }
+            Material::PointBased(PointBasedParams { .. }) => {
+                let rest_position = rest_position();
+                ShapeInfo::PointBased {
+                    inverse_moment: mls::inverse_moments(&rest_position, nb, n),
+                    volume: point_based::volumes(&rest_position, nb, n, ctx.volume),
+                    rest_position,
+                    first_pass: vec![[0.0; 12]; capacity],
                 }
             }
         }
@@ -106,6 +189,62 @@ impl ShapeInfo {
                 }
                 v
             }
+            ShapeInfo::DebunneMeshfree {
+                rest_position,
+                inverse_moment,
+                first_pass,
+                corotation,
+                ..
+            } => {
+                let mut v = vec![
+                    ArrayInfo {
+                        name: "rest_position",
+                        bytes: bytes(rest_position),
+                    },
+                    ArrayInfo {
+                        name: "inverse_moment",
+                        bytes: bytes(inverse_moment),
+                    },
+                    ArrayInfo {
+                        name: "first_pass",
+                        bytes: bytes(first_pass),
+                    },
+                ];
+                if let Some(c) = corotation {
+                    v.push(ArrayInfo {
+                        name: "shape_vector",
+                        bytes: bytes(&c.shape_vector),
+                    });
+                    v.push(ArrayInfo {
+                        name: "rotation",
+                        bytes: bytes(&c.rotation),
+                    });
+                }
+                v
+            }
+            ShapeInfo::PointBased {
+                rest_position,
+                inverse_moment,
+                volume,
+                first_pass,
+            } => vec![
+                ArrayInfo {
+                    name: "rest_position",
+                    bytes: bytes(rest_position),
+                },
+                ArrayInfo {
+                    name: "inverse_moment",
+                    bytes: bytes(inverse_moment),
+                },
+                ArrayInfo {
+                    name: "volume",
+                    bytes: bytes(volume),
+                },
+                ArrayInfo {
+                    name: "first_pass",
+                    bytes: bytes(first_pass),
+                },
+            ],
         }
     }
 }
