@@ -1,4 +1,5 @@
-//! One simulation step (forces + integration) per model, at the paper's smallest and
+//! One simulation step (forces + integration) per model (all four, plus the
+//! shape-matching and Debunne variants), at the paper's smallest and
 //! largest cube sizes (639 and 10932 target nodes), on one thread and on all threads.
 //!
 //! The cube starts stretched by 10% so that shape matching's rotation extraction does real
@@ -8,7 +9,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use needlesim::{Backend, CpuBackend, Scene, Threading, Tissue};
 use std::path::Path;
 
-const MODELS: [(&str, &str); 3] = [
+const MODELS: [(&str, &str); 6] = [
     (
         "msm",
         "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.01",
@@ -17,6 +18,18 @@ const MODELS: [(&str, &str); 3] = [
     (
         "lshm-cluster",
         "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
+    ),
+    (
+        "deb",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45",
+    ),
+    (
+        "deb-corotated",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45\ncorotated = true",
+    ),
+    (
+        "pba",
+        "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45",
     ),
 ];
 

@@ -1,40 +1,53 @@
-//! Physical checks of the two elasticity models (Debunne meshfree FEM and point based
-//! animation) against linear elasticity theory.
+//! The two continuum models (Debunne meshfree FEM, point based animation) against linear
+//! elasticity theory, and the arrays every model allocates.
 
 mod common;
 
 use common::*;
 use needlesim::core::models::{mls, point_based};
 use needlesim::core::scene::lame;
-use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
+use needlesim::{Backend, NodeField, Scene, Threading, Tissue};
 use std::path::Path;
 
 const E: f64 = 10e3;
 const NU: f64 = 0.3;
 
-fn bar_scene(material: &str, dt: f64, damping: f64) -> Scene {
+/// A 30 x 10 x 10 cm bar, 2025 nodes (spacing 12.5 mm), clamped at both x ends.
+fn clamped_bar(material: &str) -> Scene {
     let text = format!(
         "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.3, 0.1, 0.1], spacing = 0.0125 }}\n\
-         [material]\n{material}\n[physics]\ndt = {dt}\ndamping = {damping}\n\
+         [material]\n{material}\n[physics]\ndt = 2e-4\ndamping = 30.0\n\
          [[fixed]]\naxis = \"x\"\nbelow = 0.001\n[[fixed]]\naxis = \"x\"\nabove = 0.299\n"
     );
     Scene::from_toml_str(&text, Path::new(".")).unwrap()
 }
 
-fn deb(corotated: bool) -> String {
-    format!("model = \"debunne_meshfree\"\nyoung_modulus = {E}\npoisson_ratio = {NU}\ncorotated = {corotated}")
-}
-fn pba() -> String {
-    format!(
-        "model = \"point_based\"\nyoung_modulus = {E}\npoisson_ratio = {NU}\nhourglass = {}",
-        std::env::var("HG").unwrap_or("0.1".into())
-    )
+fn elastic_models() -> [(&'static str, String); 3] {
+    let m = |model: &str, extra: &str| {
+        format!("model = \"{model}\"\nyoung_modulus = {E}\npoisson_ratio = {NU}\n{extra}")
+    };
+    [
+        ("deb", m("debunne_meshfree", "")),
+        ("deb-corotated", m("debunne_meshfree", "corotated = true")),
+        ("pba", m("point_based", "")),
+    ]
 }
 
-/// Clamped bar stretched by `eps`: returns (reaction stress on the +x clamp / (E eps),
-/// mid-section lateral strain / (-nu eps), mid interior sigma_xx / (E eps)).
-fn stretched_bar(material: &str, eps: f64) -> (f64, f64, f64) {
-    let scene = bar_scene(material, 2e-4, 30.0);
+struct BarResult {
+    /// Reaction force on the +x clamp over the cross-section, over E eps.
+    reaction: f64,
+    /// Width change of the mid cross-section over -nu eps.
+    lateral: f64,
+    /// sigma_xx at the node nearest the bar's centre (MLS gradient of the positions, linear
+    /// stress), over E eps.
+    centre_stress: f64,
+}
+
+/// Stretches the clamped bar by `eps` (the +x clamp moved by eps L, free nodes started on
+/// the uniform stretch) and lets it settle for 0.6 s (4 p-wave crossings at damping
+/// 30/s; the results change by less than 1% between 0.4 and 1.2 s).
+fn stretched_bar(material: &str, eps: f64) -> BarResult {
+    let scene = clamped_bar(material);
     let rest = rest_positions(&scene);
     let mut b = backend(&scene, Threading::Parallel);
     let n = b.n_active();
@@ -43,13 +56,8 @@ fn stretched_bar(material: &str, eps: f64) -> (f64, f64, f64) {
         p[0] = (r[0] * (1.0 + eps)) as f32;
     }
     b.write(NodeField::Position, 0, &x).unwrap();
-    for _ in 0..std::env::var("STEPS_X100")
-        .map(|s| s.parse().unwrap())
-        .unwrap_or(30)
-    {
-        b.step(100);
-        b.check_finite().unwrap();
-    }
+    b.step(3000);
+    b.check_finite().unwrap();
     b.compute_forces();
     let f = read(&mut b, NodeField::Force);
     let x = read(&mut b, NodeField::Position);
@@ -57,7 +65,6 @@ fn stretched_bar(material: &str, eps: f64) -> (f64, f64, f64) {
         .filter(|&i| rest[i][0] >= 0.299)
         .map(|i| f[i][0] as f64)
         .sum();
-    let stress = -reaction / (0.1 * 0.1);
     let mid: Vec<usize> = (0..n)
         .filter(|&i| (rest[i][0] - 0.15).abs() < 0.001)
         .collect();
@@ -69,141 +76,259 @@ fn stretched_bar(material: &str, eps: f64) -> (f64, f64, f64) {
     };
     let w0 = width(&|i| rest[i][1]);
     let w = width(&|i| x[i][1] as f64);
-    let lateral = (w - w0) / w0;
-    // Interior stress at the mid-section from the MLS gradient of the positions.
     let t = Tissue::from_scene(&scene).unwrap();
     let rest4: Vec<[f32; 4]> = rest
         .iter()
         .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32, 0.0])
         .collect();
-    let (lambda, mu) = lame(E, NU);
-    let centre = mid
+    let centre = *mid
         .iter()
-        .copied()
-        .min_by(|&a, &c| {
+        .min_by(|&&a, &&c| {
             let d = |i: usize| (rest[i][1] - 0.05).powi(2) + (rest[i][2] - 0.05).powi(2);
-            d(a).partial_cmp(&d(c)).unwrap()
+            d(a).total_cmp(&d(c))
         })
         .unwrap();
     let ainv = mls::inverse_moment(centre, &rest4, &t.neighbours);
     let (j, _) = mls::displacement_gradient(centre, &x, &rest4, &t.neighbours, &ainv);
+    let (lambda, mu) = lame(E, NU);
     let s = point_based::green_stress(&j, lambda as f32, mu as f32);
-    (
-        stress / (E * eps),
-        lateral / (-NU * eps),
-        s[0][0] as f64 / (E * eps),
-    )
-}
-
-#[test]
-fn explore() {
-    for (name, m) in [("deb", deb(false)), ("pba", pba())] {
-        let r = stretched_bar(&m, 1e-3);
-        println!("{name}: {r:?}");
+    BarResult {
+        reaction: -reaction / (0.1 * 0.1) / (E * eps),
+        lateral: (w - w0) / w0 / (-NU * eps),
+        centre_stress: s[0][0] as f64 / (E * eps),
     }
 }
 
+/// Patch test: a bar stretched by eps = 1e-3 carries the stress E eps (reaction on the
+/// clamp and stress at the centre within 10%, the issue's tolerance) and contracts
+/// laterally by nu eps (within 15%: the clamps hold the end sections at full width, which
+/// lowers the contraction near them; the mid-section of a 3:1 bar is one width away).
+/// Measured (dev machine): reaction 0.99 / 0.99 / 0.95, lateral 1.04 / 1.04 / 1.07,
+/// centre stress 1.05 / 1.05 / 1.07 for deb / deb-corotated / pba.
 #[test]
-fn explore_growth() {
-    for (name, m) in [("deb", deb(false)), ("pba", pba())] {
-        let scene = bar_scene(&m, 2e-4, 30.0);
-        let mut b = backend(&scene, Threading::Parallel);
-        let mut x = read(&mut b, NodeField::Position);
-        let mut s = 12345u64;
-        for p in x.iter_mut() {
-            for a in 0..3 {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                if p[3] > 0.0 {
-                    p[a] += ((s >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 1e-5;
-                }
-            }
-        }
-        b.write(NodeField::Position, 0, &x).unwrap();
-        for it in 0..8 {
-            b.step(1000);
-            let x1 = read(&mut b, NodeField::Position);
-            let rest = rest_positions(&scene);
-            let mut maxd: f64 = 0.0;
-            let mut arg = 0;
-            for (i, (p, r)) in x1.iter().zip(&rest).enumerate() {
-                let d = ((p[0] as f64 - r[0]).powi(2)
-                    + (p[1] as f64 - r[1]).powi(2)
-                    + (p[2] as f64 - r[2]).powi(2))
-                .sqrt();
-                if d > maxd {
-                    maxd = d;
-                    arg = i;
-                }
-            }
-            println!(
-                "{name} {it}: max disp {maxd:.3e} at {arg} rest {:?}",
-                rest[arg]
-            );
-        }
+fn stretched_bar_carries_e_eps_and_contracts_by_nu_eps() {
+    for (label, material) in elastic_models() {
+        let r = stretched_bar(&material, 1e-3);
+        assert!(
+            (r.reaction - 1.0).abs() < 0.10,
+            "{label}: reaction {:.3} E eps",
+            r.reaction
+        );
+        assert!(
+            (r.centre_stress - 1.0).abs() < 0.10,
+            "{label}: centre stress {:.3} E eps",
+            r.centre_stress
+        );
+        assert!(
+            (r.lateral - 1.0).abs() < 0.15,
+            "{label}: lateral strain {:.3} nu eps",
+            r.lateral
+        );
     }
 }
 
+/// A uniform stretch of the free cube puts every deep interior node in equilibrium: the
+/// moving-least-squares gradient is exact for linear fields, and a node whose neighbours'
+/// neighbourhoods are all complete and point-symmetric gets zero net force up to f32
+/// round-off (1e-3 of the force E eps on a node's face area h^2). Nodes within two layers
+/// of the surface are not checked: their neighbours' moment matrices differ, and nodal
+/// integration then leaves a residual force (measured 2.4% of E eps h^2 two layers in).
 #[test]
-fn explore_patch_forces() {
-    for (name, m) in [("deb", deb(false)), ("pba", pba())] {
-        let scene = bar_scene(&m, 2e-4, 30.0);
+fn uniform_strain_leaves_interior_nodes_in_equilibrium() {
+    let eps = 1e-3;
+    for (label, material) in elastic_models() {
+        let scene = cube_scene(&material, 639, 0.0, [1.0; 3]);
         let rest = rest_positions(&scene);
-        let mut b = backend(&scene, Threading::Parallel);
-        let eps = 1e-3;
-        let x: Vec<[f32; 4]> = rest
-            .iter()
-            .map(|r| {
-                [
-                    (r[0] * (1.0 + eps)) as f32,
-                    (r[1] - 0.05 * 0.0 - NU * eps * (r[1] - 0.05)) as f32,
-                    (r[2] - NU * eps * (r[2] - 0.05)) as f32,
-                    1.0,
-                ]
-            })
-            .collect();
+        let mut b = backend(&scene, Threading::Single);
+        let mut x = read(&mut b, NodeField::Position);
+        for (p, r) in x.iter_mut().zip(&rest) {
+            p[0] = (r[0] * (1.0 + eps)) as f32;
+            p[1] = (r[1] * (1.0 - NU * eps)) as f32;
+            p[2] = (r[2] * (1.0 - NU * eps)) as f32;
+        }
         b.write(NodeField::Position, 0, &x).unwrap();
         b.compute_forces();
         let f = read(&mut b, NodeField::Force);
-        let fscale = E * eps * 0.0125 * 0.0125;
-        let mut worst = (0.0, 0);
-        for i in 0..rest.len() {
-            let r = rest[i];
-            let interior = (0..3).all(|a| r[a] > 0.02 && r[a] < [0.3, 0.1, 0.1][a] - 0.02);
-            let fn_ = norm3(f[i]) / fscale;
-            if interior && fn_ > worst.0 {
-                worst = (fn_, i);
+        let (lo, hi) = rest
+            .iter()
+            .fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+                (
+                    std::array::from_fn(|a| lo[a].min(p[a])),
+                    std::array::from_fn(|a| hi[a].max(p[a])),
+                )
+            });
+        // Lattice spacing: the nearest node to node 0.
+        let h = rest[1..]
+            .iter()
+            .map(|p| {
+                (0..3)
+                    .map(|a| (p[a] - rest[0][a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .fold(f64::MAX, f64::min);
+        let scale = E * eps * h * h;
+        let mut checked = 0;
+        for (i, p) in rest.iter().enumerate() {
+            // Three layers in from every face.
+            if (0..3).all(|a| p[a] > lo[a] + 2.5 * h && p[a] < hi[a] - 2.5 * h) {
+                let fi = norm3(f[i]);
+                assert!(
+                    fi < 1e-3 * scale,
+                    "{label}: node {i} force {fi:e} N vs {scale:e}"
+                );
+                checked += 1;
             }
         }
-        let lateral: f64 = (0..rest.len())
-            .filter(|&i| rest[i][1] > 0.0999 && rest[i][0] > 0.02 && rest[i][0] < 0.28)
-            .map(|i| norm3(f[i]) / fscale)
-            .fold(0.0, f64::max);
-        let reaction: f64 = (0..rest.len())
-            .filter(|&i| rest[i][0] >= 0.299)
-            .map(|i| f[i][0] as f64)
-            .sum::<f64>()
-            / (-E * eps * 0.01);
-        println!("{name}: worst interior {:?} rest {:?}, lateral face max {lateral}, reaction {reaction}", worst, rest[worst.1]);
+        assert!(checked >= 10, "{label}: only {checked} interior nodes");
     }
 }
 
+/// Every model: a rigid translation of the rest shape gives zero force (up to the f32
+/// round-off of the translated positions, 1e-5 of a 30% stretch's largest force).
 #[test]
-fn explore_row() {
-    let scene = bar_scene(&pba(), 2e-4, 30.0);
-    let rest = rest_positions(&scene);
-    let t = Tissue::from_scene(&scene).unwrap();
-    let (idx, w) = t.neighbours.row(513);
-    let mut m = [0.0; 3];
-    for s in 0..16 {
-        let d: Vec<f64> = (0..3)
-            .map(|a| ((rest[idx[s] as usize][a] - rest[513][a]) / 0.0125).round())
-            .collect();
-        println!("{:?} {}", d, w[s]);
-        for a in 0..3 {
-            m[a] += w[s] as f64 * d[a];
+fn rigid_translation_gives_zero_force() {
+    for (label, material) in all_models() {
+        let stretched = {
+            let scene = cube_scene(material, 639, 0.0, [1.3, 1.0, 1.0]);
+            let mut b = backend(&scene, Threading::Single);
+            b.compute_forces();
+            max_norm(&read(&mut b, NodeField::Force))
+        };
+        let scene = cube_scene(material, 639, 0.0, [1.0; 3]);
+        let mut b = backend(&scene, Threading::Single);
+        let mut x = read(&mut b, NodeField::Position);
+        for p in x.iter_mut() {
+            p[0] += 0.37;
+            p[1] -= 0.11;
+            p[2] += 0.05;
         }
+        b.write(NodeField::Position, 0, &x).unwrap();
+        b.compute_forces();
+        let f = max_norm(&read(&mut b, NodeField::Force));
+        assert!(
+            f <= 1e-5 * stretched,
+            "{label}: {f:e} N after translation vs {stretched:e}"
+        );
     }
-    println!("m = {m:?}");
+}
+
+/// The plain Debunne model is linear: a finite rigid rotation strains it (the paper's
+/// observation that DEB breaks down under large rotations). The co-rotated option and PBA
+/// are checked for zero force under rotation in tests/models.rs.
+#[test]
+fn linear_debunne_is_strained_by_a_finite_rotation() {
+    let (_, material) = LINEAR_DEB;
+    let scene = cube_scene(material, 639, 0.0, [1.0; 3]);
+    let rest = rest_positions(&scene);
+    let mut b = backend(&scene, Threading::Single);
+    let mut x = read(&mut b, NodeField::Position);
+    for (p, r) in x.iter_mut().zip(&rest) {
+        // 90 degrees about z through (0.05, 0.05).
+        p[0] = (0.05 - (r[1] - 0.05)) as f32;
+        p[1] = (0.05 + (r[0] - 0.05)) as f32;
+    }
+    b.write(NodeField::Position, 0, &x).unwrap();
+    b.compute_forces();
+    let rotated = max_norm(&read(&mut b, NodeField::Force));
+    let stretched = {
+        let scene = cube_scene(material, 639, 0.0, [1.3, 1.0, 1.0]);
+        let mut b = backend(&scene, Threading::Single);
+        b.compute_forces();
+        max_norm(&read(&mut b, NodeField::Force))
+    };
+    // A 90-degree rotation has linear strain -1 on two axes, far more than the 30% stretch.
+    assert!(
+        rotated > stretched,
+        "rotation force {rotated:e} vs stretch {stretched:e}"
+    );
+}
+
+/// PBA's volume term pushes a uniformly compressed cube outwards harder than the elastic
+/// term alone (it adds k_v (det F - 1) cof F to the stress).
+#[test]
+fn volume_term_resists_compression() {
+    let outward = |kv: f64| {
+        let material = format!(
+            "model = \"point_based\"\nyoung_modulus = {E}\npoisson_ratio = {NU}\nvolume_stiffness = {kv}"
+        );
+        let scene = cube_scene(&material, 639, 0.0, [0.9, 0.9, 0.9]);
+        let mut b = backend(&scene, Threading::Single);
+        b.compute_forces();
+        let f = read(&mut b, NodeField::Force);
+        let x = read(&mut b, NodeField::Position);
+        (0..f.len())
+            .map(|i| {
+                (0..3)
+                    .map(|a| f[i][a] as f64 * (x[i][a] as f64 - 0.05))
+                    .sum::<f64>()
+            })
+            .sum::<f64>()
+    };
+    let (plain, with_volume) = (outward(0.0), outward(E));
+    assert!(plain > 0.0, "compressed cube pulls inwards: {plain:e}");
+    assert!(
+        with_volume > 1.5 * plain,
+        "volume term adds too little: {with_volume:e} vs {plain:e}"
+    );
+}
+
+/// Only the chosen model's arrays are allocated (the issue's list; PBA and DEB also keep a
+/// per-step first-pass buffer, co-rotated DEB the shape matching frame).
+#[test]
+fn each_model_allocates_only_its_arrays() {
+    let common = [
+        "position",
+        "velocity",
+        "force",
+        "neighbour_index",
+        "neighbour_weight",
+    ];
+    let expected: [(&str, &str, &[&str]); 6] = [
+        ("msm", MODELS[0].1, &["rest_length"]),
+        (
+            "lshm-node",
+            MODELS[1].1,
+            &["rest_position", "shape_vector", "rotation"],
+        ),
+        (
+            "lshm-cluster",
+            MODELS[2].1,
+            &[
+                "rest_position",
+                "shape_vector",
+                "rotation",
+                "cluster_centre",
+            ],
+        ),
+        (
+            "deb",
+            LINEAR_DEB.1,
+            &["rest_position", "inverse_moment", "first_pass"],
+        ),
+        (
+            "deb-corotated",
+            MODELS[3].1,
+            &[
+                "rest_position",
+                "inverse_moment",
+                "first_pass",
+                "shape_vector",
+                "rotation",
+            ],
+        ),
+        (
+            "pba",
+            MODELS[4].1,
+            &["rest_position", "inverse_moment", "volume", "first_pass"],
+        ),
+    ];
+    for (label, material, own) in expected {
+        let scene = cube_scene(material, 639, 0.0, [1.0; 3]);
+        let t = Tissue::from_scene(&scene).unwrap();
+        let names: Vec<&str> = t.allocations().iter().map(|a| a.name).collect();
+        let want: Vec<&str> = common.iter().chain(own.iter()).copied().collect();
+        assert_eq!(names, want, "{label}");
+        assert!(t.allocations().iter().all(|a| a.bytes > 0), "{label}");
+    }
 }

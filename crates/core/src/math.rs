@@ -171,7 +171,7 @@ pub fn sym_pseudo_inverse(n: usize, a: &[f64], rel_tol: f64) -> (Vec<f64>, usize
     let mut out = vec![0.0; n * n];
     let mut rank = 0;
     for e in 0..n {
-        if !(max > 0.0) || vals[e] <= rel_tol * max {
+        if max.is_nan() || max <= 0.0 || vals[e] <= rel_tol * max {
             continue;
         }
         rank += 1;

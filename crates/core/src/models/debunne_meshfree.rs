@@ -13,14 +13,16 @@
 //! with `J_i` the point-set displacement gradient of [`super::mls`] and `V_i = m_i / rho`.
 //! Inside the body its forces `-dU/dx` approximate `V_i (mu Lap(u) + (lambda + mu)
 //! grad(div u))`; at the surface they leave the traction free, which collocation does not.
-//! Why not collocation: we implemented it (per-neighbour coefficients from a local
-//! quadratic fit, exact for quadratic fields, plus a surface traction term). It passed the
-//! stretched-bar patch test (reaction 0.95 E eps, lateral strain 0.93 nu eps) but its
-//! non-symmetric stiffness has growing modes: a clamped bar with 1e-5 m noise grew 1000x
-//! in 1.4 s despite 30/s damping, and symmetrising the blocks made it blow up at once.
-//! The energy form is symmetric, so explicit stepping is stable below the usual time step
-//! limit. The constants of Debunne's original operators could not be checked against the
-//! 1999 paper (not available to us); the energy form needs none.
+//! Why not collocation: we first implemented it (per-neighbour coefficients from a local
+//! quadratic least-squares fit, exact for quadratic fields, plus a surface traction term
+//! `-sigma_i a_i`). It passed the stretched-bar patch test (reaction 0.95 E eps, lateral
+//! strain 0.93 nu eps) but its stiffness matrix is not symmetric: a clamped bar with
+//! 1e-5 m noise grew 1000x in 1.4 s despite 30/s damping, and symmetrising the blocks made
+//! it blow up at once. (Those runs used the neighbour lists before the point-symmetric
+//! tie-break of [`crate::neighbours`]; asymmetric neighbourhoods may have contributed.)
+//! The energy form is symmetric, conserves momentum, and is stable below the usual time
+//! step limit. The constants of Debunne's original operators could not be checked
+//! against the 1999 paper (not available to us); the energy form needs none.
 //!
 //! The model is linear: rigid translations and infinitesimal rotations give zero force,
 //! finite rotations do not (the paper's observation that DEB breaks down under large

@@ -171,3 +171,61 @@ pub fn gather_force(
     }
     [f[0], f[1], f[2], 0.0]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Node 0 and `pts` as its neighbours (weight 1), in a 1-row neighbour table.
+    fn star(pts: &[[f32; 3]]) -> (Vec<Vec4>, Neighbours) {
+        let mut rest = vec![[0.0f32; 4]];
+        rest.extend(pts.iter().map(|p| [p[0], p[1], p[2], 0.0]));
+        let k = pts.len();
+        let mut index = vec![0u32; rest.len() * k];
+        let mut weight = vec![0.0f32; rest.len() * k];
+        for s in 0..k {
+            index[s] = s as u32 + 1;
+            weight[s] = 1.0;
+        }
+        (rest, Neighbours { k, index, weight })
+    }
+
+    #[test]
+    fn flat_and_collinear_neighbourhoods_give_bounded_gradients() {
+        let h = 0.01f32;
+        let flat = [
+            [h, 0.0, 0.0],
+            [-h, 0.0, 0.0],
+            [0.0, h, 0.0],
+            [0.0, -h, 0.0],
+            [h, h, 0.0],
+        ];
+        let line = [[h, 0.0, 0.0], [-h, 0.0, 0.0], [2.0 * h, 0.0, 0.0]];
+        for pts in [&flat[..], &line[..]] {
+            let (rest, nb) = star(pts);
+            let a = inverse_moment(0, &rest, &nb);
+            // Inverse of the spanned directions only: at most 1 / (smallest kept eigenvalue).
+            assert!(
+                a.iter().all(|x| x.is_finite() && x.abs() <= 1.0 / (h * h)),
+                "{a:?}"
+            );
+            // Stretch by 1% along x and lift the neighbours (not the node) by 0.3 h out of
+            // their plane or line: the gradient stays finite and of order lift / h, with no
+            // amplification by the missing directions.
+            let x: Vec<Vec4> = rest
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let lift = if i == 0 { 0.0 } else { 0.3 * h };
+                    [p[0] * 1.01, p[1] + lift, p[2] + lift, 0.0]
+                })
+                .collect();
+            let (j, _) = displacement_gradient(0, &x, &rest, &nb, &a);
+            for r in 0..3 {
+                for c in 0..3 {
+                    assert!(j[r][c].is_finite() && j[r][c].abs() < 1.0, "{j:?}");
+                }
+            }
+        }
+    }
+}
