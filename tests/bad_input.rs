@@ -49,6 +49,34 @@ fn bad_scenes_name_the_key() {
         ),
         (GOOD.replace("dt = 1e-3", "dt = 0.0"), "physics.dt"),
         (
+            GOOD.replace(
+                "model = \"mass_spring\"\nstiffness = 100.0",
+                "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.5",
+            ),
+            "material.poisson_ratio",
+        ),
+        (
+            GOOD.replace(
+                "model = \"mass_spring\"\nstiffness = 100.0",
+                "model = \"point_based\"\nyoung_modulus = -1e4\npoisson_ratio = 0.3",
+            ),
+            "material.young_modulus",
+        ),
+        (
+            GOOD.replace(
+                "model = \"mass_spring\"\nstiffness = 100.0",
+                "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nhourglass = -1.0",
+            ),
+            "material.hourglass",
+        ),
+        (
+            GOOD.replace(
+                "model = \"mass_spring\"\nstiffness = 100.0",
+                "model = \"point_based\"\nyoung_modulus = 1e4",
+            ),
+            "poisson_ratio",
+        ),
+        (
             GOOD.replace("mass_spring", "finite_elements"),
             "finite_elements",
         ),
