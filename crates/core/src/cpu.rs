@@ -125,6 +125,17 @@ fn for_each_node<A: Send, B: Send>(
     }
 }
 
+/// Sets `out[i] = f(i)` for every node, serially or in parallel chunks.
+fn map_nodes<A: Send>(
+    pool: Option<&rayon::ThreadPool>,
+    parallel: bool,
+    out: &mut [A],
+    f: impl Fn(usize) -> A + Sync + Send,
+) {
+    let mut unit = vec![(); out.len()];
+    for_each_node(pool, parallel, out, &mut unit, |i, o, _| *o = f(i));
+}
+
 impl Backend for CpuBackend {
     fn name(&self) -> String {
         match self.threads() {
@@ -165,9 +176,8 @@ impl Backend for CpuBackend {
             ) => {
                 let (k, c) = (*stiffness as f32, *spring_damping as f32);
                 let rest_length = &rest_length[..];
-                let mut unit = vec![(); n];
-                for_each_node(pool, self.parallel, forces, &mut unit, |i, f, _| {
-                    *f = mass_spring::force(i, pos, vel, nb, rest_length, k, c);
+                map_nodes(pool, self.parallel, forces, |i| {
+                    mass_spring::force(i, pos, vel, nb, rest_length, k, c)
                 });
             }
             (
@@ -212,11 +222,10 @@ impl Backend for CpuBackend {
                             },
                         );
                         let (centre, rotation) = (&centre[..], &rotation[..]);
-                        let mut unit = vec![(); n];
-                        for_each_node(pool, self.parallel, forces, &mut unit, |j, f, _| {
-                            *f = local_shape_matching::cluster_force(
+                        map_nodes(pool, self.parallel, forces, |j| {
+                            local_shape_matching::cluster_force(
                                 j, pos, rest, sv, nb, k, centre, rotation,
-                            );
+                            )
                         });
                     }
                 }
@@ -242,18 +251,11 @@ impl Backend for CpuBackend {
                 let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], *node_volume);
                 match corotation {
                     None => {
-                        let mut unit = vec![(); n];
-                        for_each_node(
-                            pool,
-                            self.parallel,
-                            &mut first_pass[..n],
-                            &mut unit,
-                            |i, q, _| {
-                                *q = debunne_meshfree::first_pass(
-                                    i, pos, rest, nb, &a_inv[i], vol, lambda, mu, hg, None,
-                                );
-                            },
-                        );
+                        map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
+                            debunne_meshfree::first_pass(
+                                i, pos, rest, nb, &a_inv[i], vol, lambda, mu, hg, None,
+                            )
+                        });
                     }
                     Some(Corotation {
                         shape_vector,
@@ -287,9 +289,8 @@ impl Backend for CpuBackend {
                     }
                 }
                 let first = &first_pass[..];
-                let mut unit = vec![(); n];
-                for_each_node(pool, self.parallel, forces, &mut unit, |i, f, _| {
-                    *f = mls::gather_force(i, pos, rest, nb, first);
+                map_nodes(pool, self.parallel, forces, |i| {
+                    mls::gather_force(i, pos, rest, nb, first)
                 });
             }
             (
@@ -314,19 +315,12 @@ impl Backend for CpuBackend {
                     hourglass: (*hourglass * mu) as f32,
                 };
                 let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], &volume[..]);
-                let mut unit = vec![(); n];
-                for_each_node(
-                    pool,
-                    self.parallel,
-                    &mut first_pass[..n],
-                    &mut unit,
-                    |i, q, _| {
-                        *q = point_based::first_pass(i, pos, rest, nb, &a_inv[i], vol[i], &c);
-                    },
-                );
+                map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
+                    point_based::first_pass(i, pos, rest, nb, &a_inv[i], vol[i], &c)
+                });
                 let first = &first_pass[..];
-                for_each_node(pool, self.parallel, forces, &mut unit, |i, f, _| {
-                    *f = mls::gather_force(i, pos, rest, nb, first);
+                map_nodes(pool, self.parallel, forces, |i| {
+                    mls::gather_force(i, pos, rest, nb, first)
                 });
             }
             (m, s) => unreachable!("material {m:?} built with shape info {:?}", s.arrays()),
