@@ -8,7 +8,7 @@
 //!
 //! ```no_run
 //! use needlesim::{run_scene, RunOptions, Scene};
-//! let scene = Scene::from_file("scenes/cube_lshm.toml")?;
+//! let scene = Scene::from_file("scenes/cube_sag_lshm.toml")?;
 //! let summary = run_scene(&scene, &RunOptions::new("out/cube"), |_, _| {})?;
 //! println!("{} steps at {:.0} steps/s", summary.steps, summary.steps_per_second());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -26,6 +26,7 @@ pub use needlesim_core::{
     Backend, CpuBackend, GeometryError, Material, NodeField, Scene, SceneError, SimError,
     Threading, Tissue,
 };
+pub use needlesim_gpu as gpu;
 pub use runner::{make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary};
 
 /// The default scene of `needlesim run` without a scene file: a soft cube clamped on one

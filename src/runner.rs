@@ -7,6 +7,7 @@ use needlesim_core::scene::BackendChoice;
 use needlesim_core::{
     Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue,
 };
+use needlesim_gpu::GpuBackend;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -31,6 +32,9 @@ pub enum RunError {
     /// The thread pool could not be created.
     #[error(transparent)]
     Threads(#[from] needlesim_core::cpu::ThreadPoolError),
+    /// The GPU backend was asked for and cannot run.
+    #[error(transparent)]
+    Gpu(#[from] needlesim_gpu::GpuError),
 }
 
 /// Options of a run that are not part of the scene.
@@ -40,7 +44,9 @@ pub struct RunOptions {
     pub out_dir: PathBuf,
     /// Overrides the scene's `run.steps`.
     pub steps: Option<u64>,
-    /// Overrides the scene's backend: 1 = single-threaded CPU, n > 1 = n threads.
+    /// Overrides the scene's backend.
+    pub backend: Option<BackendChoice>,
+    /// CPU threads (0 = all); implies a CPU backend and overrides `backend`.
     pub threads: Option<usize>,
     /// Write output files (CSV and surface frames); off for benchmarks.
     pub write_files: bool,
@@ -52,6 +58,7 @@ impl RunOptions {
         RunOptions {
             out_dir: out_dir.into(),
             steps: None,
+            backend: None,
             threads: None,
             write_files: true,
         }
@@ -96,6 +103,8 @@ pub struct RunSummary {
     pub frames: Vec<FrameMetrics>,
     /// Files written.
     pub files: Vec<PathBuf>,
+    /// Warnings (for example the GPU fallback of `backend = "auto"`).
+    pub warnings: Vec<String>,
 }
 
 impl RunSummary {
@@ -105,20 +114,32 @@ impl RunSummary {
     }
 }
 
-/// The backend a scene asks for, with an optional thread-count override.
+/// The backend a scene asks for (or `backend`, or a CPU backend with `threads` threads,
+/// 0 = all), and a warning when `auto` fell back to the CPU.
 pub fn make_backend(
     scene: &Scene,
     tissue: Tissue,
+    backend: Option<BackendChoice>,
     threads: Option<usize>,
-) -> Result<Box<dyn Backend>, RunError> {
-    let threading = match (threads, scene.backend) {
-        (Some(0), _) => Threading::Parallel,
-        (Some(1), _) => Threading::Single,
-        (Some(n), _) => Threading::Threads(n),
-        (None, BackendChoice::Cpu) => Threading::Single,
-        (None, BackendChoice::CpuParallel) => Threading::Parallel,
+) -> Result<(Box<dyn Backend>, Option<String>), RunError> {
+    let cpu = |tissue, threading| -> Result<Box<dyn Backend>, RunError> {
+        Ok(Box::new(CpuBackend::new(tissue, threading)?))
     };
-    Ok(Box::new(CpuBackend::new(tissue, threading)?))
+    match (threads, backend.unwrap_or(scene.backend)) {
+        (Some(0), _) => Ok((cpu(tissue, Threading::Parallel)?, None)),
+        (Some(1), _) => Ok((cpu(tissue, Threading::Single)?, None)),
+        (Some(n), _) => Ok((cpu(tissue, Threading::Threads(n))?, None)),
+        (None, BackendChoice::Cpu) => Ok((cpu(tissue, Threading::Single)?, None)),
+        (None, BackendChoice::CpuParallel) => Ok((cpu(tissue, Threading::Parallel)?, None)),
+        (None, BackendChoice::Gpu) => Ok((Box::new(GpuBackend::new(&tissue)?), None)),
+        (None, BackendChoice::Auto) => match GpuBackend::new(&tissue) {
+            Ok(g) => Ok((Box::new(g), None)),
+            Err(e) => Ok((
+                cpu(tissue, Threading::Parallel)?,
+                Some(format!("GPU backend unavailable, running on the CPU: {e}")),
+            )),
+        },
+    }
 }
 
 fn metrics(
@@ -174,7 +195,7 @@ pub fn run_scene(
     let tissue = Tissue::from_cloud(scene, cloud, 0)?;
     let triangles = tissue.triangles.clone();
     let dt = tissue.step.dt as f64;
-    let mut backend = make_backend(scene, tissue, options.threads)?;
+    let (mut backend, warning) = make_backend(scene, tissue, options.backend, options.threads)?;
     let total = options.steps.unwrap_or(scene.run.steps);
     let every = scene.run.output_every;
     let n = backend.n_active();
@@ -232,6 +253,7 @@ pub fn run_scene(
         let chunk = every.min(total - done);
         let t0 = Instant::now();
         backend.step(chunk);
+        backend.finish();
         step_time += t0.elapsed();
         done += chunk;
     }
@@ -250,5 +272,6 @@ pub fn run_scene(
         total_time: start.elapsed(),
         frames,
         files,
+        warnings: warning.into_iter().collect(),
     })
 }

@@ -113,3 +113,53 @@ fn every_shipped_scene_loads() {
             .unwrap()
     );
 }
+
+/// `--backend auto` runs on the GPU when wgpu finds an adapter (always under scripts/test,
+/// which installs lavapipe and sets NEEDLESIM_REQUIRE_GPU) and otherwise falls back to the
+/// CPU with a warning; the frames match the CPU run's to 1e-6 m. A bad backend name is a
+/// clear error.
+#[test]
+fn backend_option_selects_the_gpu_or_falls_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |backend: &str| {
+        let out = dir.path().join(backend);
+        let o = needlesim()
+            .args(["run", "--steps", "300", "--backend", backend, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stdout}\n{stderr}");
+        let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        let last: Vec<f64> = csv
+            .lines()
+            .last()
+            .unwrap()
+            .split(',')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        (stdout, stderr, last)
+    };
+    let (auto_out, auto_err, auto_last) = run("auto");
+    let (_, _, cpu_last) = run("cpu");
+    if std::env::var("NEEDLESIM_REQUIRE_GPU").is_ok() {
+        assert!(auto_out.contains("backend     gpu ("), "{auto_out}");
+    } else if !auto_out.contains("backend     gpu (") {
+        assert!(
+            auto_err.contains("warning: GPU backend unavailable"),
+            "{auto_err}"
+        );
+    }
+    // Max displacement after 300 steps.
+    assert!(
+        (auto_last[4] - cpu_last[4]).abs() < 1e-6,
+        "{auto_last:?} vs {cpu_last:?}"
+    );
+    let o = needlesim()
+        .args(["run", "--backend", "banana"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown backend `banana`"));
+}

@@ -3,6 +3,8 @@
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use needlesim::core::scene::BackendChoice;
+use needlesim::gpu::GpuContext;
 use needlesim::{run_scene, RunOptions, Scene, SceneInfo, DEFAULT_SCENE};
 use std::path::{Path, PathBuf};
 
@@ -30,15 +32,33 @@ enum Command {
         /// Steps to run (overrides the scene's run.steps).
         #[arg(long)]
         steps: Option<u64>,
-        /// CPU threads: 1 for the single-threaded backend, 0 for all threads.
+        /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
+        #[arg(long, value_parser = parse_backend)]
+        backend: Option<BackendChoice>,
+        /// CPU threads: 1 for the single-threaded backend, 0 for all threads (overrides
+        /// --backend).
         #[arg(long)]
         threads: Option<usize>,
     },
+    /// Print the GPU adapter wgpu finds (or why there is none).
+    Adapter,
     /// Print node count, neighbour statistics and the bytes of every allocated array.
     Info {
         /// Scene file (TOML); the shipped default when omitted.
         scene: Option<PathBuf>,
     },
+}
+
+fn parse_backend(s: &str) -> Result<BackendChoice, String> {
+    match s {
+        "cpu" => Ok(BackendChoice::Cpu),
+        "cpu-parallel" => Ok(BackendChoice::CpuParallel),
+        "gpu" => Ok(BackendChoice::Gpu),
+        "auto" => Ok(BackendChoice::Auto),
+        _ => Err(format!(
+            "unknown backend `{s}` (expected cpu, cpu-parallel, gpu or auto)"
+        )),
+    }
 }
 
 fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
@@ -74,10 +94,15 @@ fn run(cli: Cli) -> Result<()> {
             let (scene, _) = load(&scene)?;
             println!("{}", SceneInfo::of(&scene)?);
         }
+        Command::Adapter => {
+            let ctx = GpuContext::new(0)?;
+            println!("{}", ctx.describe());
+        }
         Command::Run {
             scene,
             out,
             steps,
+            backend,
             threads,
         } => {
             let (scene, stem) = load(&scene)?;
@@ -85,6 +110,7 @@ fn run(cli: Cli) -> Result<()> {
             let options = RunOptions {
                 out_dir: out.clone(),
                 steps,
+                backend,
                 threads,
                 write_files: true,
             };
@@ -97,6 +123,9 @@ fn run(cli: Cli) -> Result<()> {
             let summary = run_scene(&scene, &options, |done, _| bar.set_position(done))
                 .with_context(|| format!("running scene `{stem}`"))?;
             bar.finish_and_clear();
+            for w in &summary.warnings {
+                eprintln!("warning: {w}");
+            }
             let last = summary.frames.last().copied();
             println!("scene       {stem} ({})", scene.material.short_name());
             println!("backend     {}", summary.backend);

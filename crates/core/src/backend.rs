@@ -42,6 +42,10 @@ pub trait Backend {
     }
     /// Steps run since creation.
     fn steps_taken(&self) -> u64;
+    /// Blocks until all submitted work is done (a no-op on the CPU, where [`Backend::step`]
+    /// returns when the work is done; a GPU backend only queues it). Call it before
+    /// stopping a clock.
+    fn finish(&mut self) {}
     /// Copies `range` of `field` into `out` (`out.len() == range.len()`).
     fn read(
         &mut self,

@@ -381,7 +381,7 @@ impl Backend for CpuBackend {
         weight: &[f32],
     ) -> Result<(), SimError> {
         let k = self.tissue.neighbours.k;
-        if index.len() % k != 0 || weight.len() != index.len() {
+        if !index.len().is_multiple_of(k) || weight.len() != index.len() {
             return Err(SimError::BadRowLength {
                 k,
                 len: index.len().max(weight.len()),

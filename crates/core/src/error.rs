@@ -152,4 +152,10 @@ pub enum SimError {
         /// Length given.
         len: usize,
     },
+    /// The device (GPU) failed an operation.
+    #[error("device error: {message}")]
+    Device {
+        /// What failed.
+        message: String,
+    },
 }

@@ -6,7 +6,7 @@
 //!
 //! ```no_run
 //! use needlesim_core::{Backend, CpuBackend, Scene, Threading, Tissue};
-//! let scene = Scene::from_file("scenes/cube_lshm.toml")?;
+//! let scene = Scene::from_file("scenes/cube_sag_lshm.toml")?;
 //! let tissue = Tissue::from_scene(&scene)?;
 //! let mut backend = CpuBackend::new(tissue, Threading::Parallel)?;
 //! backend.step(100);

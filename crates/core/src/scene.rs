@@ -72,6 +72,10 @@ pub enum BackendChoice {
     /// All CPU threads (rayon); the default.
     #[default]
     CpuParallel,
+    /// The wgpu compute backend; an error if no GPU adapter is found.
+    Gpu,
+    /// The GPU when an adapter is found, else all CPU threads (with a warning).
+    Auto,
 }
 
 /// Tissue geometry and discretisation.

@@ -1,5 +1,27 @@
 //! # needlesim-gpu
 //!
-//! The wgpu compute backend (one pipeline wrapper per WGSL kernel in `shaders/`,
-//! implementing `needlesim_core::Backend`). Not written yet: this crate reserves its place
-//! in the workspace and exports nothing.
+//! The wgpu compute backend: every tissue model as WGSL kernels (`shaders/`, one file per
+//! kernel plus shared code), on any GPU that wgpu drives (Vulkan, Metal, DX12) and on
+//! Mesa's software Vulkan driver (lavapipe) in CI. The CPU backend of `needlesim-core` is
+//! the reference each kernel mirrors; the tests compare the two.
+//!
+//! ```no_run
+//! use needlesim_core::{Backend, Scene, Tissue};
+//! use needlesim_gpu::GpuBackend;
+//! let scene = Scene::from_file("scenes/cube_sag_lshm.toml")?;
+//! let tissue = Tissue::from_scene(&scene)?;
+//! let mut gpu = GpuBackend::new(&tissue)?;
+//! println!("{}", gpu.adapter());
+//! gpu.step(1000); // recorded in batches, no readback
+//! gpu.check_finite()?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![warn(missing_docs)]
+
+mod backend;
+mod context;
+pub mod kernels;
+
+pub use backend::{largest_buffer, Buffers, GpuBackend};
+pub use context::{GpuContext, GpuError};

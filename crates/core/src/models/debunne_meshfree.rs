@@ -37,14 +37,16 @@ use super::mls::pack_first_pass;
 use crate::math::{Mat3, Vec4};
 use crate::neighbours::Neighbours;
 
-/// Linear stress `sigma = lambda tr(eps) I + 2 mu eps` of `eps = sym(G) - I`, where `G` is
-/// the (rotated back) deformation gradient.
+/// Linear stress `sigma = lambda tr(eps) I + 2 mu eps` of `eps = sym(H)`, where `H` is the
+/// (rotated back) displacement gradient. Taking H rather than `F = I + H` avoids the
+/// cancellation in `sym(F) - I`, whose rounding would depend on whether the compiler fuses
+/// multiply-adds (it made the GPU and CPU results drift apart).
 #[inline(always)]
-pub fn linear_stress(g: &Mat3, lambda: f32, mu: f32) -> Mat3 {
-    let tr = g[0][0] + g[1][1] + g[2][2] - 3.0;
+pub fn linear_stress(h: &Mat3, lambda: f32, mu: f32) -> Mat3 {
+    let tr = h[0][0] + h[1][1] + h[2][2];
     std::array::from_fn(|r| {
         std::array::from_fn(|c| {
-            let eps = 0.5 * (g[r][c] + g[c][r]) - if r == c { 1.0 } else { 0.0 };
+            let eps = 0.5 * (h[r][c] + h[c][r]);
             2.0 * mu * eps + if r == c { lambda * tr } else { 0.0 }
         })
     })
@@ -67,12 +69,17 @@ pub fn first_pass(
     rotation: Option<&Mat3>,
 ) -> [f32; 12] {
     let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
-    let f = super::point_based::deformation_gradient(&j);
     let p = match rotation {
-        None => linear_stress(&f, lambda, mu),
+        None => linear_stress(&j, lambda, mu),
         Some(r) => {
+            // R^T F - I, the diagonal subtraction exact (Sterbenz) for entries in [0.5, 2].
             let rt: Mat3 = std::array::from_fn(|a| std::array::from_fn(|b| r[b][a]));
-            let s = linear_stress(&super::mls::mat_mul(&rt, &f), lambda, mu);
+            let f = super::point_based::deformation_gradient(&j);
+            let mut h = super::mls::mat_mul(&rt, &f);
+            for a in 0..3 {
+                h[a][a] -= 1.0;
+            }
+            let s = linear_stress(&h, lambda, mu);
             super::mls::mat_mul(r, &s)
         }
     };
