@@ -1,0 +1,112 @@
+//! One step per model on every backend: one CPU thread, all CPU threads, and the GPU
+//! (steps recorded in batches without readback, and one step per submit followed by a
+//! needle-sized readback of 32 positions, as a haptic loop would do).
+//!
+//! Sizes: `NEEDLESIM_BENCH_SIZES` (comma-separated target node counts, default
+//! `639,10932`); the issue's full set is `639,10932,100000,1000000` (building the 1M cube
+//! takes about a minute on 2 cores). Models: `NEEDLESIM_BENCH_MODELS` (default all).
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use needlesim::gpu::GpuBackend;
+use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
+use std::path::Path;
+use std::time::Instant;
+
+const MODELS: [(&str, &str); 5] = [
+    (
+        "msm",
+        "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.01",
+    ),
+    ("lshm", "model = \"local_shape_matching\"\nstiffness = 20.0"),
+    (
+        "lshm-cluster",
+        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
+    ),
+    (
+        "deb",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45",
+    ),
+    (
+        "pba",
+        "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45",
+    ),
+];
+
+fn scene(material: &str, nodes: usize) -> Scene {
+    let text = format!(
+        "[tissue]\nneighbours = 16\ngeometry = {{ kind = \"box\", min = [0, 0, 0], max = [0.1, 0.1, 0.1], nodes = {nodes} }}\n\
+         [material]\n{material}\n[physics]\ndt = 1e-5\ndamping = 20.0\n[initial]\nstretch = [1.01, 1.0, 1.0]\n"
+    );
+    Scene::from_toml_str(&text, Path::new(".")).unwrap()
+}
+
+fn env_list(name: &str) -> Option<Vec<String>> {
+    std::env::var(name)
+        .ok()
+        .map(|s| s.split(',').map(|x| x.trim().to_string()).collect())
+}
+
+fn backends(c: &mut Criterion) {
+    let sizes: Vec<usize> = env_list("NEEDLESIM_BENCH_SIZES")
+        .map(|v| v.iter().map(|x| x.parse().expect("node count")).collect())
+        .unwrap_or(vec![639, 10932]);
+    let models = env_list("NEEDLESIM_BENCH_MODELS");
+    let mut group = c.benchmark_group("backends");
+    group.sample_size(10);
+    for (label, material) in MODELS {
+        if models
+            .as_ref()
+            .is_some_and(|m| !m.iter().any(|x| x == label))
+        {
+            continue;
+        }
+        for &nodes in &sizes {
+            let tissue = Tissue::from_scene(&scene(material, nodes)).unwrap();
+            group.throughput(Throughput::Elements(tissue.n_mesh as u64));
+            for (name, threading) in [
+                ("cpu-1", Threading::Single),
+                ("cpu-all", Threading::Parallel),
+            ] {
+                let mut b = CpuBackend::new(tissue.clone(), threading).unwrap();
+                group.bench_function(
+                    BenchmarkId::new(format!("{label}/{name}"), nodes),
+                    |bench| bench.iter(|| b.step(1)),
+                );
+            }
+            let mut g = match GpuBackend::new(&tissue) {
+                Ok(g) => g,
+                Err(e) => {
+                    eprintln!("GPU benches skipped: {e}");
+                    continue;
+                }
+            };
+            eprintln!("GPU: {}", g.adapter());
+            group.bench_function(
+                BenchmarkId::new(format!("{label}/gpu-batched"), nodes),
+                |bench| {
+                    bench.iter_custom(|iters| {
+                        let t = Instant::now();
+                        g.step(iters);
+                        g.finish();
+                        t.elapsed()
+                    })
+                },
+            );
+            let mut needle = vec![[0.0f32; 4]; 32];
+            group.bench_function(
+                BenchmarkId::new(format!("{label}/gpu-step-readback"), nodes),
+                |bench| {
+                    bench.iter(|| {
+                        g.step(1);
+                        g.read(NodeField::Position, 0..32, &mut needle).unwrap();
+                    })
+                },
+            );
+            g.check_finite().expect("bench scene stays finite");
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, backends);
+criterion_main!(benches);
