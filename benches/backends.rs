@@ -8,37 +8,11 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use needlesim::gpu::GpuBackend;
-use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
-use std::path::Path;
+use needlesim::{Backend, CpuBackend, NodeField, Threading, Tissue};
 use std::time::Instant;
 
-const MODELS: [(&str, &str); 5] = [
-    (
-        "msm",
-        "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.01",
-    ),
-    ("lshm", "model = \"local_shape_matching\"\nstiffness = 20.0"),
-    (
-        "lshm-cluster",
-        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
-    ),
-    (
-        "deb",
-        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45",
-    ),
-    (
-        "pba",
-        "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.45",
-    ),
-];
-
-fn scene(material: &str, nodes: usize) -> Scene {
-    let text = format!(
-        "[tissue]\nneighbours = 16\ngeometry = {{ kind = \"box\", min = [0, 0, 0], max = [0.1, 0.1, 0.1], nodes = {nodes} }}\n\
-         [material]\n{material}\n[physics]\ndt = 1e-5\ndamping = 20.0\n[initial]\nstretch = [1.01, 1.0, 1.0]\n"
-    );
-    Scene::from_toml_str(&text, Path::new(".")).unwrap()
-}
+mod common;
+use common::{cube, MODELS};
 
 fn env_list(name: &str) -> Option<Vec<String>> {
     std::env::var(name)
@@ -61,7 +35,7 @@ fn backends(c: &mut Criterion) {
             continue;
         }
         for &nodes in &sizes {
-            let tissue = Tissue::from_scene(&scene(material, nodes)).unwrap();
+            let tissue = Tissue::from_scene(&cube(material, nodes, 1e-5, 1.01)).unwrap();
             group.throughput(Throughput::Elements(tissue.n_mesh as u64));
             for (name, threading) in [
                 ("cpu-1", Threading::Single),

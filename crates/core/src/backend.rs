@@ -103,3 +103,23 @@ pub fn check_range(range: &Range<usize>, limit: usize, what: &'static str) -> Re
         Ok(())
     }
 }
+
+/// Checks a neighbour row write (`index` and `weight` of whole rows of `k` slots starting
+/// at node `first`, within `capacity`) and returns the rows it covers.
+pub fn check_rows(
+    first: usize,
+    index: &[u32],
+    weight: &[f32],
+    k: usize,
+    capacity: usize,
+) -> Result<Range<usize>, SimError> {
+    if !index.len().is_multiple_of(k) || weight.len() != index.len() {
+        return Err(SimError::BadRowLength {
+            k,
+            len: index.len().max(weight.len()),
+        });
+    }
+    let rows = first..first + index.len() / k;
+    check_range(&rows, capacity, "allocated")?;
+    Ok(rows)
+}

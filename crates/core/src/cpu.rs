@@ -2,7 +2,7 @@
 //! threads (rayon). Each node's force and update depend only on the previous state, so the
 //! single- and multi-threaded backends give bitwise identical results.
 
-use crate::backend::{check_range, Backend, NodeField};
+use crate::backend::{check_range, check_rows, Backend, NodeField};
 use crate::error::SimError;
 use crate::integrator::integrate_node;
 use crate::math::quat_to_mat;
@@ -381,14 +381,7 @@ impl Backend for CpuBackend {
         weight: &[f32],
     ) -> Result<(), SimError> {
         let k = self.tissue.neighbours.k;
-        if !index.len().is_multiple_of(k) || weight.len() != index.len() {
-            return Err(SimError::BadRowLength {
-                k,
-                len: index.len().max(weight.len()),
-            });
-        }
-        let rows = first..first + index.len() / k;
-        check_range(&rows, self.capacity(), "allocated")?;
+        let rows = check_rows(first, index, weight, k, self.capacity())?;
         let nb = &mut self.tissue.neighbours;
         nb.index[first * k..rows.end * k].copy_from_slice(index);
         nb.weight[first * k..rows.end * k].copy_from_slice(weight);

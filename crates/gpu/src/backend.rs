@@ -5,8 +5,8 @@
 use crate::context::{GpuContext, GpuError};
 use crate::kernels::{self, Kernel, WORKGROUP};
 use bytemuck::{Pod, Zeroable};
-use needlesim_core::backend::check_range;
-use needlesim_core::models::{Corotation, ShapeInfo};
+use needlesim_core::backend::{check_range, check_rows};
+use needlesim_core::models::ShapeInfo;
 use needlesim_core::scene::{
     lame, DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
 };
@@ -159,88 +159,14 @@ impl GpuBackend {
             pad: [0.0; 3],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
-        let mut model: Vec<(&'static str, wgpu::Buffer)> = Vec::new();
-        match &tissue.shape {
-            ShapeInfo::MassSpring { rest_length } => {
-                model.push((
-                    "rest_length",
-                    b("rest_length", bytemuck::cast_slice(rest_length)),
-                ));
-            }
-            ShapeInfo::LocalShapeMatching {
-                rest_position,
-                shape_vector,
-                rotation,
-                cluster_centre,
-            } => {
-                model.push((
-                    "rest_position",
-                    b("rest_position", bytemuck::cast_slice(rest_position)),
-                ));
-                model.push((
-                    "shape_vector",
-                    b("shape_vector", bytemuck::cast_slice(shape_vector)),
-                ));
-                model.push(("rotation", b("rotation", bytemuck::cast_slice(rotation))));
-                if let Some(c) = cluster_centre {
-                    model.push((
-                        "cluster_centre",
-                        b("cluster_centre", bytemuck::cast_slice(c)),
-                    ));
-                }
-            }
-            ShapeInfo::DebunneMeshfree {
-                rest_position,
-                inverse_moment,
-                node_volume,
-                first_pass,
-                corotation,
-            } => {
-                params.node_volume = *node_volume;
-                model.push((
-                    "rest_position",
-                    b("rest_position", bytemuck::cast_slice(rest_position)),
-                ));
-                model.push((
-                    "inverse_moment",
-                    b("inverse_moment", bytemuck::cast_slice(inverse_moment)),
-                ));
-                model.push((
-                    "first_pass",
-                    b("first_pass", bytemuck::cast_slice(first_pass)),
-                ));
-                if let Some(Corotation {
-                    shape_vector,
-                    rotation,
-                }) = corotation
-                {
-                    model.push((
-                        "shape_vector",
-                        b("shape_vector", bytemuck::cast_slice(shape_vector)),
-                    ));
-                    model.push(("rotation", b("rotation", bytemuck::cast_slice(rotation))));
-                }
-            }
-            ShapeInfo::PointBased {
-                rest_position,
-                inverse_moment,
-                volume,
-                first_pass,
-            } => {
-                model.push((
-                    "rest_position",
-                    b("rest_position", bytemuck::cast_slice(rest_position)),
-                ));
-                model.push((
-                    "inverse_moment",
-                    b("inverse_moment", bytemuck::cast_slice(inverse_moment)),
-                ));
-                model.push(("volume", b("volume", bytemuck::cast_slice(volume))));
-                model.push((
-                    "first_pass",
-                    b("first_pass", bytemuck::cast_slice(first_pass)),
-                ));
-            }
+        let model: Vec<(&'static str, wgpu::Buffer)> = tissue
+            .shape
+            .bytes()
+            .into_iter()
+            .map(|(name, bytes)| (name, b(name, bytes)))
+            .collect();
+        if let ShapeInfo::DebunneMeshfree { node_volume, .. } = &tissue.shape {
+            params.node_volume = *node_volume;
         }
         match tissue.material {
             Material::MassSpring(MassSpringParams {
@@ -643,17 +569,7 @@ impl Backend for GpuBackend {
         weight: &[f32],
     ) -> Result<(), SimError> {
         let k = self.params.k as usize;
-        if !index.len().is_multiple_of(k) || weight.len() != index.len() {
-            return Err(SimError::BadRowLength {
-                k,
-                len: index.len().max(weight.len()),
-            });
-        }
-        check_range(
-            &(first..first + index.len() / k),
-            self.capacity,
-            "allocated",
-        )?;
+        check_rows(first, index, weight, k, self.capacity)?;
         let offset = (first * k * 4) as u64;
         let q = &self.ctx.queue;
         q.write_buffer(&self.buffers.nb_index, offset, bytemuck::cast_slice(index));

@@ -153,14 +153,20 @@ impl ShapeInfo {
 
     /// The arrays this model allocated, with their sizes.
     pub fn arrays(&self) -> Vec<ArrayInfo> {
-        fn bytes<T>(v: &[T]) -> usize {
-            std::mem::size_of_val(v)
-        }
+        self.bytes()
+            .into_iter()
+            .map(|(name, b)| ArrayInfo {
+                name,
+                bytes: b.len(),
+            })
+            .collect()
+    }
+
+    /// Every array of the model as raw bytes, by name (the layout the GPU buffers use).
+    pub fn bytes(&self) -> Vec<(&'static str, &[u8])> {
+        use bytemuck::cast_slice as b;
         match self {
-            ShapeInfo::MassSpring { rest_length } => vec![ArrayInfo {
-                name: "rest_length",
-                bytes: bytes(rest_length),
-            }],
+            ShapeInfo::MassSpring { rest_length } => vec![("rest_length", b(rest_length))],
             ShapeInfo::LocalShapeMatching {
                 rest_position,
                 shape_vector,
@@ -168,24 +174,12 @@ impl ShapeInfo {
                 cluster_centre,
             } => {
                 let mut v = vec![
-                    ArrayInfo {
-                        name: "rest_position",
-                        bytes: bytes(rest_position),
-                    },
-                    ArrayInfo {
-                        name: "shape_vector",
-                        bytes: bytes(shape_vector),
-                    },
-                    ArrayInfo {
-                        name: "rotation",
-                        bytes: bytes(rotation),
-                    },
+                    ("rest_position", b(rest_position)),
+                    ("shape_vector", b(shape_vector)),
+                    ("rotation", b(rotation)),
                 ];
                 if let Some(c) = cluster_centre {
-                    v.push(ArrayInfo {
-                        name: "cluster_centre",
-                        bytes: bytes(c),
-                    });
+                    v.push(("cluster_centre", b(c)));
                 }
                 v
             }
@@ -197,28 +191,13 @@ impl ShapeInfo {
                 ..
             } => {
                 let mut v = vec![
-                    ArrayInfo {
-                        name: "rest_position",
-                        bytes: bytes(rest_position),
-                    },
-                    ArrayInfo {
-                        name: "inverse_moment",
-                        bytes: bytes(inverse_moment),
-                    },
-                    ArrayInfo {
-                        name: "first_pass",
-                        bytes: bytes(first_pass),
-                    },
+                    ("rest_position", b(rest_position)),
+                    ("inverse_moment", b(inverse_moment)),
+                    ("first_pass", b(first_pass)),
                 ];
                 if let Some(c) = corotation {
-                    v.push(ArrayInfo {
-                        name: "shape_vector",
-                        bytes: bytes(&c.shape_vector),
-                    });
-                    v.push(ArrayInfo {
-                        name: "rotation",
-                        bytes: bytes(&c.rotation),
-                    });
+                    v.push(("shape_vector", b(&c.shape_vector)));
+                    v.push(("rotation", b(&c.rotation)));
                 }
                 v
             }
@@ -228,22 +207,10 @@ impl ShapeInfo {
                 volume,
                 first_pass,
             } => vec![
-                ArrayInfo {
-                    name: "rest_position",
-                    bytes: bytes(rest_position),
-                },
-                ArrayInfo {
-                    name: "inverse_moment",
-                    bytes: bytes(inverse_moment),
-                },
-                ArrayInfo {
-                    name: "volume",
-                    bytes: bytes(volume),
-                },
-                ArrayInfo {
-                    name: "first_pass",
-                    bytes: bytes(first_pass),
-                },
+                ("rest_position", b(rest_position)),
+                ("inverse_moment", b(inverse_moment)),
+                ("volume", b(volume)),
+                ("first_pass", b(first_pass)),
             ],
         }
     }
