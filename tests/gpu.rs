@@ -152,3 +152,72 @@ fn dispatch_beyond_one_grid_dimension() {
     let rel = relative_difference(&pc, &pg, &start, &rest_positions(&scene));
     assert!(rel < 1e-4, "{label}: {rel:e}");
 }
+
+/// Shape information rows written through the `Backend` trait change the forces the same
+/// way on both backends (here: node 7's spring rest lengths, and PBA's inverse moment and
+/// volume of node 9); bad writes are typed errors on both.
+#[test]
+fn shape_rows_written_on_either_backend_agree() {
+    use needlesim::SimError;
+    for (label, material, array, offset, bytes) in [
+        (
+            "msm",
+            MODELS[0].1,
+            "rest_length",
+            7 * 16 * 4,
+            vec![0.02f32; 16],
+        ),
+        ("pba", MODELS[4].1, "volume", 9 * 4, vec![2e-6f32]),
+        (
+            "pba",
+            MODELS[4].1,
+            "inverse_moment",
+            9 * 36,
+            vec![1e4f32; 9],
+        ),
+    ] {
+        let scene = cube_scene(material, 639, 0.0, [1.0; 3]);
+        let tissue = Tissue::from_scene(&scene).unwrap();
+        let mut c = backend(&scene, Threading::Single);
+        let data: &[u8] = bytemuck::cast_slice(&bytes);
+        let bad = |b: &mut dyn Backend| {
+            for (name, off, len) in [
+                ("no_such_array", 0, 4),
+                (array, offset + 2, 4),
+                (array, 1 << 30, 4),
+            ] {
+                let e = b.write_shape_bytes(name, off, &vec![0u8; len]).unwrap_err();
+                assert!(matches!(e, SimError::BadShapeWrite { .. }), "{label}: {e}");
+            }
+        };
+        bad(&mut c);
+        c.write_shape_bytes(array, offset, data).unwrap();
+        let Some(mut g) = gpu(&tissue) else { continue };
+        bad(&mut g);
+        g.write_shape_bytes(array, offset, data).unwrap();
+        let mut x = read(&mut c, NodeField::Position);
+        x[8][1] += 0.003;
+        for b in [&mut c as &mut dyn Backend, &mut g] {
+            b.write(NodeField::Position, 0, &x).unwrap();
+            b.compute_forces();
+        }
+        let (fc, fg) = (
+            read(&mut c, NodeField::Force),
+            read(&mut g, NodeField::Force),
+        );
+        let scale = max_norm(&fc);
+        assert!(scale > 0.0);
+        for i in 0..fc.len() {
+            let d = norm3([
+                fc[i][0] - fg[i][0],
+                fc[i][1] - fg[i][1],
+                fc[i][2] - fg[i][2],
+                0.0,
+            ]);
+            assert!(
+                d <= 1e-5 * scale,
+                "{label} {array}: node {i} differs by {d:e}"
+            );
+        }
+    }
+}

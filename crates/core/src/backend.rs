@@ -63,6 +63,16 @@ pub trait Backend {
         weight: &[f32],
     ) -> Result<(), SimError>;
 
+    /// Overwrites `data.len()` bytes at byte `offset` of the model's shape information array
+    /// `array` (a name from `Tissue::allocations`, e.g. `rest_length` or `inverse_moment`;
+    /// the layout is that of `ShapeInfo::bytes`). The needle uses it to give a new node and
+    /// its neighbours their shape information, on any backend.
+    fn write_shape_bytes(
+        &mut self,
+        array: &str,
+        offset: usize,
+        data: &[u8],
+    ) -> Result<(), SimError>;
     /// Reads the positions of all active nodes and returns an error naming the first
     /// non-finite position or velocity.
     fn check_finite(&mut self) -> Result<(), SimError> {
@@ -122,4 +132,32 @@ pub fn check_rows(
     let rows = first..first + index.len() / k;
     check_range(&rows, capacity, "allocated")?;
     Ok(rows)
+}
+
+/// Checks a shape array write of `len` bytes at `offset` into an array of `size` bytes
+/// (`None`: the model has no such array). Offsets and lengths must be multiples of 4.
+pub fn check_shape_write(
+    array: &str,
+    offset: usize,
+    len: usize,
+    size: Option<usize>,
+) -> Result<(), SimError> {
+    let err = |reason| {
+        Err(SimError::BadShapeWrite {
+            array: array.to_string(),
+            offset,
+            len,
+            reason,
+        })
+    };
+    match size {
+        None => err("the model has no such array"),
+        Some(_) if offset % 4 != 0 || len % 4 != 0 => {
+            err("offset and length must be multiples of 4")
+        }
+        Some(size) if offset.checked_add(len).is_none_or(|end| end > size) => {
+            err("past the end of the array")
+        }
+        Some(_) => Ok(()),
+    }
 }

@@ -2,7 +2,7 @@
 //! threads (rayon). Each node's force and update depend only on the previous state, so the
 //! single- and multi-threaded backends give bitwise identical results.
 
-use crate::backend::{check_range, check_rows, Backend, NodeField};
+use crate::backend::{check_range, check_rows, check_shape_write, Backend, NodeField};
 use crate::error::SimError;
 use crate::integrator::integrate_node;
 use crate::math::quat_to_mat;
@@ -385,6 +385,26 @@ impl Backend for CpuBackend {
         let nb = &mut self.tissue.neighbours;
         nb.index[first * k..rows.end * k].copy_from_slice(index);
         nb.weight[first * k..rows.end * k].copy_from_slice(weight);
+        Ok(())
+    }
+
+    fn write_shape_bytes(
+        &mut self,
+        array: &str,
+        offset: usize,
+        data: &[u8],
+    ) -> Result<(), SimError> {
+        let mut arrays = self.tissue.shape.bytes_mut();
+        let target = arrays.iter_mut().find(|(n, _)| *n == array);
+        check_shape_write(
+            array,
+            offset,
+            data.len(),
+            target.as_ref().map(|(_, b)| b.len()),
+        )?;
+        if let Some((_, bytes)) = target {
+            bytes[offset..offset + data.len()].copy_from_slice(data);
+        }
         Ok(())
     }
 }

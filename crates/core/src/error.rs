@@ -152,6 +152,18 @@ pub enum SimError {
         /// Length given.
         len: usize,
     },
+    /// A write to a shape information array the model does not have, or outside it.
+    #[error("cannot write {len} bytes at byte {offset} of shape array `{array}`: {reason}")]
+    BadShapeWrite {
+        /// Array name (as listed by `Tissue::allocations`).
+        array: String,
+        /// Byte offset.
+        offset: usize,
+        /// Bytes given.
+        len: usize,
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// The device (GPU) failed an operation.
     #[error("device error: {message}")]
     Device {

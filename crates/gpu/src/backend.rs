@@ -5,7 +5,7 @@
 use crate::context::{GpuContext, GpuError};
 use crate::kernels::{self, Kernel, WORKGROUP};
 use bytemuck::{Pod, Zeroable};
-use needlesim_core::backend::{check_range, check_rows};
+use needlesim_core::backend::{check_range, check_rows, check_shape_write};
 use needlesim_core::models::ShapeInfo;
 use needlesim_core::scene::{
     lame, DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
@@ -578,6 +578,27 @@ impl Backend for GpuBackend {
             offset,
             bytemuck::cast_slice(weight),
         );
+        Ok(())
+    }
+
+    fn write_shape_bytes(
+        &mut self,
+        array: &str,
+        offset: usize,
+        data: &[u8],
+    ) -> Result<(), SimError> {
+        let target = self.buffers.model.iter().find(|(n, _)| *n == array);
+        check_shape_write(
+            array,
+            offset,
+            data.len(),
+            target.map(|(_, b)| b.size() as usize),
+        )?;
+        if let Some((_, buffer)) = target {
+            if !data.is_empty() {
+                self.ctx.queue.write_buffer(buffer, offset as u64, data);
+            }
+        }
         Ok(())
     }
 }

@@ -162,6 +162,59 @@ impl ShapeInfo {
             .collect()
     }
 
+    /// Every array of the model as mutable raw bytes, by name.
+    pub fn bytes_mut(&mut self) -> Vec<(&'static str, &mut [u8])> {
+        use bytemuck::cast_slice_mut as b;
+        match self {
+            ShapeInfo::MassSpring { rest_length } => vec![("rest_length", b(rest_length))],
+            ShapeInfo::LocalShapeMatching {
+                rest_position,
+                shape_vector,
+                rotation,
+                cluster_centre,
+            } => {
+                let mut v = vec![
+                    ("rest_position", b(rest_position)),
+                    ("shape_vector", b(shape_vector)),
+                    ("rotation", b(rotation)),
+                ];
+                if let Some(c) = cluster_centre {
+                    v.push(("cluster_centre", b(c)));
+                }
+                v
+            }
+            ShapeInfo::DebunneMeshfree {
+                rest_position,
+                inverse_moment,
+                first_pass,
+                corotation,
+                ..
+            } => {
+                let mut v = vec![
+                    ("rest_position", b(rest_position)),
+                    ("inverse_moment", b(inverse_moment)),
+                    ("first_pass", b(first_pass)),
+                ];
+                if let Some(c) = corotation {
+                    v.push(("shape_vector", b(&mut c.shape_vector)));
+                    v.push(("rotation", b(&mut c.rotation)));
+                }
+                v
+            }
+            ShapeInfo::PointBased {
+                rest_position,
+                inverse_moment,
+                volume,
+                first_pass,
+            } => vec![
+                ("rest_position", b(rest_position)),
+                ("inverse_moment", b(inverse_moment)),
+                ("volume", b(volume)),
+                ("first_pass", b(first_pass)),
+            ],
+        }
+    }
+
     /// Every array of the model as raw bytes, by name (the layout the GPU buffers use).
     pub fn bytes(&self) -> Vec<(&'static str, &[u8])> {
         use bytemuck::cast_slice as b;
