@@ -152,7 +152,7 @@ pub fn check_shape_write(
     };
     match size {
         None => err("the model has no such array"),
-        Some(_) if offset % 4 != 0 || len % 4 != 0 => {
+        Some(_) if !offset.is_multiple_of(4) || !len.is_multiple_of(4) => {
             err("offset and length must be multiples of 4")
         }
         Some(size) if offset.checked_add(len).is_none_or(|end| end > size) => {
