@@ -81,6 +81,64 @@ pub struct BuildContext<'a> {
     pub volume: f64,
 }
 
+/// The model's arrays as `(name, bytes)` in a fixed order, through `$cast` and `$slice`
+/// (shared or mutable), so that [`ShapeInfo::bytes`] and [`ShapeInfo::bytes_mut`] list the
+/// same arrays.
+macro_rules! named_arrays {
+    ($self:expr, $cast:path, $slice:ident) => {
+        match $self {
+            ShapeInfo::MassSpring { rest_length } => {
+                vec![("rest_length", $cast(rest_length.$slice()))]
+            }
+            ShapeInfo::LocalShapeMatching {
+                rest_position,
+                shape_vector,
+                rotation,
+                cluster_centre,
+            } => {
+                let mut v = vec![
+                    ("rest_position", $cast(rest_position.$slice())),
+                    ("shape_vector", $cast(shape_vector.$slice())),
+                    ("rotation", $cast(rotation.$slice())),
+                ];
+                if let Some(c) = cluster_centre {
+                    v.push(("cluster_centre", $cast(c.$slice())));
+                }
+                v
+            }
+            ShapeInfo::DebunneMeshfree {
+                rest_position,
+                inverse_moment,
+                first_pass,
+                corotation,
+                ..
+            } => {
+                let mut v = vec![
+                    ("rest_position", $cast(rest_position.$slice())),
+                    ("inverse_moment", $cast(inverse_moment.$slice())),
+                    ("first_pass", $cast(first_pass.$slice())),
+                ];
+                if let Some(c) = corotation {
+                    v.push(("shape_vector", $cast(c.shape_vector.$slice())));
+                    v.push(("rotation", $cast(c.rotation.$slice())));
+                }
+                v
+            }
+            ShapeInfo::PointBased {
+                rest_position,
+                inverse_moment,
+                volume,
+                first_pass,
+            } => vec![
+                ("rest_position", $cast(rest_position.$slice())),
+                ("inverse_moment", $cast(inverse_moment.$slice())),
+                ("volume", $cast(volume.$slice())),
+                ("first_pass", $cast(first_pass.$slice())),
+            ],
+        }
+    };
+}
+
 /// Name and size of one allocated array.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ArrayInfo {
@@ -164,107 +222,11 @@ impl ShapeInfo {
 
     /// Every array of the model as mutable raw bytes, by name.
     pub fn bytes_mut(&mut self) -> Vec<(&'static str, &mut [u8])> {
-        use bytemuck::cast_slice_mut as b;
-        match self {
-            ShapeInfo::MassSpring { rest_length } => vec![("rest_length", b(rest_length))],
-            ShapeInfo::LocalShapeMatching {
-                rest_position,
-                shape_vector,
-                rotation,
-                cluster_centre,
-            } => {
-                let mut v = vec![
-                    ("rest_position", b(rest_position)),
-                    ("shape_vector", b(shape_vector)),
-                    ("rotation", b(rotation)),
-                ];
-                if let Some(c) = cluster_centre {
-                    v.push(("cluster_centre", b(c)));
-                }
-                v
-            }
-            ShapeInfo::DebunneMeshfree {
-                rest_position,
-                inverse_moment,
-                first_pass,
-                corotation,
-                ..
-            } => {
-                let mut v = vec![
-                    ("rest_position", b(rest_position)),
-                    ("inverse_moment", b(inverse_moment)),
-                    ("first_pass", b(first_pass)),
-                ];
-                if let Some(c) = corotation {
-                    v.push(("shape_vector", b(&mut c.shape_vector)));
-                    v.push(("rotation", b(&mut c.rotation)));
-                }
-                v
-            }
-            ShapeInfo::PointBased {
-                rest_position,
-                inverse_moment,
-                volume,
-                first_pass,
-            } => vec![
-                ("rest_position", b(rest_position)),
-                ("inverse_moment", b(inverse_moment)),
-                ("volume", b(volume)),
-                ("first_pass", b(first_pass)),
-            ],
-        }
+        named_arrays!(self, bytemuck::cast_slice_mut, as_mut_slice)
     }
 
     /// Every array of the model as raw bytes, by name (the layout the GPU buffers use).
     pub fn bytes(&self) -> Vec<(&'static str, &[u8])> {
-        use bytemuck::cast_slice as b;
-        match self {
-            ShapeInfo::MassSpring { rest_length } => vec![("rest_length", b(rest_length))],
-            ShapeInfo::LocalShapeMatching {
-                rest_position,
-                shape_vector,
-                rotation,
-                cluster_centre,
-            } => {
-                let mut v = vec![
-                    ("rest_position", b(rest_position)),
-                    ("shape_vector", b(shape_vector)),
-                    ("rotation", b(rotation)),
-                ];
-                if let Some(c) = cluster_centre {
-                    v.push(("cluster_centre", b(c)));
-                }
-                v
-            }
-            ShapeInfo::DebunneMeshfree {
-                rest_position,
-                inverse_moment,
-                first_pass,
-                corotation,
-                ..
-            } => {
-                let mut v = vec![
-                    ("rest_position", b(rest_position)),
-                    ("inverse_moment", b(inverse_moment)),
-                    ("first_pass", b(first_pass)),
-                ];
-                if let Some(c) = corotation {
-                    v.push(("shape_vector", b(&c.shape_vector)));
-                    v.push(("rotation", b(&c.rotation)));
-                }
-                v
-            }
-            ShapeInfo::PointBased {
-                rest_position,
-                inverse_moment,
-                volume,
-                first_pass,
-            } => vec![
-                ("rest_position", b(rest_position)),
-                ("inverse_moment", b(inverse_moment)),
-                ("volume", b(volume)),
-                ("first_pass", b(first_pass)),
-            ],
-        }
+        named_arrays!(self, bytemuck::cast_slice, as_slice)
     }
 }
