@@ -1,0 +1,134 @@
+//! The rigid straight needle: base `b`, unit direction `t` (base to tip), length `L`, tip
+//! `b + L t`.
+
+use thiserror::Error;
+
+/// A needle pose or parameter that cannot be simulated.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NeedleError {
+    /// A coordinate is NaN or infinite.
+    #[error("needle {what} must be finite, got {value:?}")]
+    NonFinite {
+        /// Which quantity.
+        what: &'static str,
+        /// Its value.
+        value: [f64; 3],
+    },
+    /// The direction has (almost) zero length.
+    #[error("needle direction must be non-zero, got {0:?}")]
+    ZeroDirection([f64; 3]),
+    /// The length is not positive.
+    #[error("needle length must be a finite number > 0, got {0}")]
+    BadLength(f64),
+}
+
+/// A rigid straight needle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Needle {
+    base: [f64; 3],
+    direction: [f64; 3],
+    length: f64,
+}
+
+fn finite(what: &'static str, v: [f64; 3]) -> Result<(), NeedleError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(NeedleError::NonFinite { what, value: v })
+    }
+}
+
+/// Euclidean length.
+pub fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// `v / |v|`, or an error for a zero or non-finite vector.
+pub fn unit(v: [f64; 3]) -> Result<[f64; 3], NeedleError> {
+    finite("direction", v)?;
+    let n = norm(v);
+    if n < 1e-12 {
+        return Err(NeedleError::ZeroDirection(v));
+    }
+    Ok(v.map(|x| x / n))
+}
+
+impl Needle {
+    /// A needle from its base, a direction (normalised here) and its length in metres.
+    pub fn new(base: [f64; 3], direction: [f64; 3], length: f64) -> Result<Needle, NeedleError> {
+        finite("base", base)?;
+        if !(length.is_finite() && length > 0.0) {
+            return Err(NeedleError::BadLength(length));
+        }
+        Ok(Needle {
+            base,
+            direction: unit(direction)?,
+            length,
+        })
+    }
+
+    /// Base point.
+    pub fn base(&self) -> [f64; 3] {
+        self.base
+    }
+
+    /// Unit direction from base to tip.
+    pub fn direction(&self) -> [f64; 3] {
+        self.direction
+    }
+
+    /// Length in metres.
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+
+    /// Tip point `b + L t`.
+    pub fn tip(&self) -> [f64; 3] {
+        std::array::from_fn(|a| self.base[a] + self.length * self.direction[a])
+    }
+
+    /// Moves the needle to a new pose (same length).
+    pub fn set_pose(&mut self, base: [f64; 3], direction: [f64; 3]) -> Result<(), NeedleError> {
+        finite("base", base)?;
+        self.direction = unit(direction)?;
+        self.base = base;
+        Ok(())
+    }
+
+    /// Splits `p - b` into the distance along the shaft and the perpendicular offset.
+    pub fn project(&self, p: [f64; 3]) -> (f64, [f64; 3]) {
+        let d: [f64; 3] = std::array::from_fn(|a| p[a] - self.base[a]);
+        let s: f64 = (0..3).map(|a| d[a] * self.direction[a]).sum();
+        (s, std::array::from_fn(|a| d[a] - s * self.direction[a]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tip_projection_and_bad_poses() {
+        let mut n = Needle::new([0.0, 1.0, 0.0], [2.0, 0.0, 0.0], 0.15).unwrap();
+        assert_eq!(n.tip(), [0.15, 1.0, 0.0]);
+        let (s, r) = n.project([0.05, 1.02, 0.0]);
+        assert!((s - 0.05).abs() < 1e-15 && (r[1] - 0.02).abs() < 1e-15);
+        assert_eq!(
+            n.set_pose([0.0; 3], [0.0; 3]),
+            Err(NeedleError::ZeroDirection([0.0; 3]))
+        );
+        assert!(matches!(
+            n.set_pose([f64::NAN, 0.0, 0.0], [1.0, 0.0, 0.0]),
+            Err(NeedleError::NonFinite { what: "base", .. })
+        ));
+        assert_eq!(
+            n.tip(),
+            [0.15, 1.0, 0.0],
+            "a refused pose leaves the needle as it was"
+        );
+        assert_eq!(
+            Needle::new([0.0; 3], [1.0, 0.0, 0.0], -1.0),
+            Err(NeedleError::BadLength(-1.0))
+        );
+    }
+}
