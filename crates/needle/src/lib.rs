@@ -4,17 +4,19 @@
 //! ([`needle`]), pose scripts of keyframes ([`script`]), and the segment-against-surface
 //! query with a grid broad phase that the Outside state needs ([`surface_query`]), and the
 //! surface side of the puncture state machine: states, the 1-to-3 triangle split and its
-//! exact reversal, the cone angle and its thresholds ([`puncture`]). Still to come (see the
-//! project's issues): node addition and exact removal, the state machine driving a backend,
-//! stick-slip friction and the needle force.
+//! exact reversal, the cone angle and its thresholds ([`puncture`]), and the stick-slip
+//! friction law ([`friction`]). Still to come (see the project's issues): node addition and
+//! exact removal, the state machine driving a backend, and the needle force.
 
 #![warn(missing_docs)]
 
+pub mod friction;
 pub mod needle;
 pub mod puncture;
 pub mod script;
 pub mod surface_query;
 
+pub use friction::{FrictionParams, FrictionState};
 pub use needle::{Needle, NeedleError};
 pub use puncture::{PunctureState, Thresholds};
 pub use script::{Keyframe, PoseScript};
