@@ -48,6 +48,20 @@ fn relative_difference(
     diff / motion
 }
 
+/// Steps `g` and a single-threaded CPU backend of the same scene `steps` times and returns
+/// their [`relative_difference`].
+fn steps_apart(scene: &needlesim::Scene, g: &mut GpuBackend, steps: u64) -> f64 {
+    let mut c = backend(scene, Threading::Single);
+    let start = read(&mut c, NodeField::Position);
+    c.step(steps);
+    g.step(steps);
+    let (pc, pg) = (
+        read(&mut c, NodeField::Position),
+        read(g, NodeField::Position),
+    );
+    relative_difference(&pc, &pg, &start, &rest_positions(scene))
+}
+
 /// Every model: 500 steps of a cube stretched by 30% and released, GPU against one CPU
 /// thread. Tolerance 1e-4 of the largest displacement (the criterion): the kernels
 /// do the same f32 arithmetic in the same order except where the shader compiler fuses
@@ -58,16 +72,8 @@ fn gpu_matches_cpu_for_every_model() {
         let scene = cube_scene(material, 639, 20.0, [1.3, 1.0, 1.0]);
         let tissue = Tissue::from_scene(&scene).unwrap();
         let Some(mut g) = gpu(&tissue) else { return };
-        let mut c = backend(&scene, Threading::Single);
-        let start = read(&mut c, NodeField::Position);
-        c.step(500);
-        g.step(500);
-        let (pc, pg) = (
-            read(&mut c, NodeField::Position),
-            read(&mut g, NodeField::Position),
-        );
+        let rel = steps_apart(&scene, &mut g, 500);
         g.check_finite().unwrap();
-        let rel = relative_difference(&pc, &pg, &start, &rest_positions(&scene));
         eprintln!("{label}: relative difference {rel:e}");
         assert!(
             rel < 1e-4,
@@ -141,15 +147,7 @@ fn dispatch_beyond_one_grid_dimension() {
     let tissue = Tissue::from_scene(&scene).unwrap();
     let Some(mut g) = gpu(&tissue) else { return };
     g.set_max_groups_x(2);
-    let mut c = backend(&scene, Threading::Single);
-    let start = read(&mut c, NodeField::Position);
-    c.step(100);
-    g.step(100);
-    let (pc, pg) = (
-        read(&mut c, NodeField::Position),
-        read(&mut g, NodeField::Position),
-    );
-    let rel = relative_difference(&pc, &pg, &start, &rest_positions(&scene));
+    let rel = steps_apart(&scene, &mut g, 100);
     assert!(rel < 1e-4, "{label}: {rel:e}");
 }
 
