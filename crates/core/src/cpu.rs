@@ -11,7 +11,7 @@ use crate::models::{
     debunne_meshfree, local_shape_matching, mass_spring, mls, point_based, Corotation, ShapeInfo,
 };
 use crate::scene::{
-    lame, DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
+    DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
 };
 use crate::tissue::Tissue;
 use rayon::prelude::*;
@@ -232,10 +232,7 @@ impl Backend for CpuBackend {
             }
             (
                 Material::DebunneMeshfree(DebunneParams {
-                    young_modulus,
-                    poisson_ratio,
                     rotation_iterations,
-                    hourglass,
                     ..
                 }),
                 ShapeInfo::DebunneMeshfree {
@@ -246,8 +243,8 @@ impl Backend for CpuBackend {
                     corotation,
                 },
             ) => {
-                let (lambda, mu) = lame(*young_modulus, *poisson_ratio);
-                let (lambda, mu, hg) = (lambda as f32, mu as f32, (*hourglass * mu) as f32);
+                let c = mls::ContinuumConstants::of(&t.material).expect("Debunne material");
+                let (lambda, mu, hg) = (c.lambda, c.mu, c.hourglass);
                 let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], *node_volume);
                 match corotation {
                     None => {
@@ -294,12 +291,7 @@ impl Backend for CpuBackend {
                 });
             }
             (
-                Material::PointBased(PointBasedParams {
-                    young_modulus,
-                    poisson_ratio,
-                    volume_stiffness,
-                    hourglass,
-                }),
+                Material::PointBased(PointBasedParams { .. }),
                 ShapeInfo::PointBased {
                     rest_position,
                     inverse_moment,
@@ -307,13 +299,7 @@ impl Backend for CpuBackend {
                     first_pass,
                 },
             ) => {
-                let (lambda, mu) = lame(*young_modulus, *poisson_ratio);
-                let c = point_based::PointBasedConstants {
-                    lambda: lambda as f32,
-                    mu: mu as f32,
-                    volume_stiffness: *volume_stiffness as f32,
-                    hourglass: (*hourglass * mu) as f32,
-                };
+                let c = mls::ContinuumConstants::of(&t.material).expect("point based material");
                 let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], &volume[..]);
                 map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
                     point_based::first_pass(i, pos, rest, nb, &a_inv[i], vol[i], &c)

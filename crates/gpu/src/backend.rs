@@ -6,10 +6,9 @@ use crate::context::{GpuContext, GpuError};
 use crate::kernels::{self, Kernel, WORKGROUP};
 use bytemuck::{Pod, Zeroable};
 use needlesim_core::backend::{check_range, check_rows, check_shape_write};
+use needlesim_core::models::mls::ContinuumConstants;
 use needlesim_core::models::ShapeInfo;
-use needlesim_core::scene::{
-    lame, DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
-};
+use needlesim_core::scene::{DebunneParams, MassSpringParams, Material, ShapeMatchingParams};
 use needlesim_core::{Backend, NodeField, SimError, Tissue, Vec4};
 use std::ops::Range;
 use wgpu::util::DeviceExt;
@@ -185,28 +184,16 @@ impl GpuBackend {
                 params.iterations = rotation_iterations;
             }
             Material::DebunneMeshfree(DebunneParams {
-                young_modulus,
-                poisson_ratio,
                 rotation_iterations,
-                hourglass,
                 ..
-            }) => {
-                let (l, m) = lame(young_modulus, poisson_ratio);
-                (params.lambda, params.mu) = (l as f32, m as f32);
-                params.hourglass = (hourglass * m) as f32;
-                params.iterations = rotation_iterations;
-            }
-            Material::PointBased(PointBasedParams {
-                young_modulus,
-                poisson_ratio,
-                volume_stiffness,
-                hourglass,
-            }) => {
-                let (l, m) = lame(young_modulus, poisson_ratio);
-                (params.lambda, params.mu) = (l as f32, m as f32);
-                params.volume_stiffness = volume_stiffness as f32;
-                params.hourglass = (hourglass * m) as f32;
-            }
+            }) => params.iterations = rotation_iterations,
+            Material::PointBased(_) => {}
+        }
+        if let Some(c) = ContinuumConstants::of(&tissue.material) {
+            params.lambda = c.lambda;
+            params.mu = c.mu;
+            params.volume_stiffness = c.volume_stiffness;
+            params.hourglass = c.hourglass;
         }
         let buffers = Buffers {
             params: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

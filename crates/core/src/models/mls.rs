@@ -31,6 +31,48 @@
 use crate::math::{sub, sym_pseudo_inverse, Mat3, Vec4};
 use crate::neighbours::Neighbours;
 
+/// Material constants of the two continuum models, in Pa, as the kernels use them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContinuumConstants {
+    /// Lame lambda.
+    pub lambda: f32,
+    /// Lame mu.
+    pub mu: f32,
+    /// Volume stiffness k_v (point based animation; 0 for Debunne).
+    pub volume_stiffness: f32,
+    /// Hourglass coefficient alpha times mu.
+    pub hourglass: f32,
+}
+
+impl ContinuumConstants {
+    /// The constants of a Debunne or point based material; `None` for the other models.
+    pub fn of(material: &crate::scene::Material) -> Option<ContinuumConstants> {
+        use crate::scene::{lame, DebunneParams, Material, PointBasedParams};
+        let (e, nu, kv, alpha) = match *material {
+            Material::DebunneMeshfree(DebunneParams {
+                young_modulus,
+                poisson_ratio,
+                hourglass,
+                ..
+            }) => (young_modulus, poisson_ratio, 0.0, hourglass),
+            Material::PointBased(PointBasedParams {
+                young_modulus,
+                poisson_ratio,
+                volume_stiffness,
+                hourglass,
+            }) => (young_modulus, poisson_ratio, volume_stiffness, hourglass),
+            _ => return None,
+        };
+        let (lambda, mu) = lame(e, nu);
+        Some(ContinuumConstants {
+            lambda: lambda as f32,
+            mu: mu as f32,
+            volume_stiffness: kv as f32,
+            hourglass: (alpha * mu) as f32,
+        })
+    }
+}
+
 /// Relative eigenvalue threshold for inverting the moment matrix (condition number at
 /// most 1000).
 pub const MOMENT_TOLERANCE: f64 = 1e-3;

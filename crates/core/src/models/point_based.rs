@@ -18,7 +18,7 @@
 //! length scale), and the volumes are scaled to add up to the volume enclosed by the
 //! surface (which makes the energy of a uniform strain exact).
 
-use super::mls::{mat_mul, pack_first_pass};
+use super::mls::{mat_mul, pack_first_pass, ContinuumConstants};
 use crate::math::{cross, sub, Mat3, Vec4};
 use crate::neighbours::Neighbours;
 
@@ -74,19 +74,6 @@ pub fn green_stress(j: &Mat3, lambda: f32, mu: f32) -> Mat3 {
     })
 }
 
-/// Material constants of one step.
-#[derive(Debug, Clone, Copy)]
-pub struct PointBasedConstants {
-    /// Lame lambda in Pa.
-    pub lambda: f32,
-    /// Lame mu in Pa.
-    pub mu: f32,
-    /// Volume stiffness k_v in Pa.
-    pub volume_stiffness: f32,
-    /// Hourglass coefficient times mu, in Pa.
-    pub hourglass: f32,
-}
-
 /// First pass of node i: `P = F S + k_v (det F - 1) cof F`, packed by
 /// [`pack_first_pass`].
 #[inline]
@@ -97,7 +84,7 @@ pub fn first_pass(
     nb: &Neighbours,
     inverse_moment: &[f32; 9],
     volume: f32,
-    c: &PointBasedConstants,
+    c: &ContinuumConstants,
 ) -> [f32; 12] {
     let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
     let f = deformation_gradient(&j);
