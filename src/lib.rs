@@ -27,6 +27,7 @@ pub use needlesim_core::{
     Threading, Tissue,
 };
 pub use needlesim_gpu as gpu;
+pub use needlesim_needle as needle;
 pub use runner::{make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary};
 
 /// The default scene of `needlesim run` without a scene file: a soft cube clamped on one

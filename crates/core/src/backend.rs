@@ -53,6 +53,27 @@ pub trait Backend {
         range: Range<usize>,
         out: &mut [Vec4],
     ) -> Result<(), SimError>;
+    /// Copies the listed nodes of `field` into `out` (`out.len() == nodes.len()`), in one
+    /// transfer where the backend can (the needle reads the few nodes around the tip this
+    /// way). The default reads them one by one.
+    fn read_nodes(
+        &mut self,
+        field: NodeField,
+        nodes: &[u32],
+        out: &mut [Vec4],
+    ) -> Result<(), SimError> {
+        if nodes.len() != out.len() {
+            return Err(SimError::BadRowLength {
+                k: 1,
+                len: out.len(),
+            });
+        }
+        for (&i, o) in nodes.iter().zip(out.iter_mut()) {
+            let i = i as usize;
+            self.read(field, i..i + 1, std::slice::from_mut(o))?;
+        }
+        Ok(())
+    }
     /// Overwrites `data.len()` nodes of `field` starting at `first`.
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError>;
     /// Overwrites the neighbour rows of nodes `first..first + index.len() / K`.

@@ -57,6 +57,11 @@ pub struct Scene {
     /// How long to run and what to write.
     #[serde(default)]
     pub run: RunSettings,
+    /// The needle (table `[needle]`), read and validated by `needlesim-needle`; this crate
+    /// keeps it as raw TOML so that it knows nothing of the needle. A scene without it has
+    /// no needle and allocates no needle node slots.
+    #[serde(default)]
+    pub needle: Option<toml::Table>,
     /// Directory that relative paths in the scene are resolved against (the scene file's
     /// directory); not read from the file.
     #[serde(skip)]

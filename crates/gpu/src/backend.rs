@@ -301,6 +301,61 @@ impl GpuBackend {
         self.ctx.queue.submit([encoder.finish()]);
     }
 
+    /// Copies runs `(first node, count)` of `field` into `out`, back to back.
+    fn gather(
+        &self,
+        field: NodeField,
+        runs: &[(usize, usize)],
+        out: &mut [Vec4],
+    ) -> Result<(), SimError> {
+        let total: usize = runs.iter().map(|r| r.1).sum();
+        if total == 0 {
+            return Ok(());
+        }
+        let bytes = (total * 16) as u64;
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("read"),
+            });
+        let mut at = 0u64;
+        for &(first, count) in runs {
+            let len = (count * 16) as u64;
+            encoder.copy_buffer_to_buffer(
+                self.field(field),
+                (first * 16) as u64,
+                &self.buffers.readback,
+                at,
+                len,
+            );
+            at += len;
+        }
+        self.ctx.queue.submit([encoder.finish()]);
+        let slice = self.buffers.readback.slice(..bytes);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait();
+        match rx.recv() {
+            Ok(Ok(())) => {}
+            other => {
+                return Err(SimError::Device {
+                    message: format!("mapping the readback buffer failed: {other:?}"),
+                })
+            }
+        }
+        {
+            let view = slice.get_mapped_range().map_err(|e| SimError::Device {
+                message: format!("reading the readback buffer failed: {e}"),
+            })?;
+            out.copy_from_slice(bytemuck::cast_slice(&view));
+        }
+        self.buffers.readback.unmap();
+        Ok(())
+    }
+
     fn field(&self, field: NodeField) -> &wgpu::Buffer {
         match field {
             NodeField::Position => &self.buffers.positions,
@@ -497,46 +552,40 @@ impl Backend for GpuBackend {
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
         check_range(&range, self.capacity, "allocated")?;
-        if range.is_empty() {
+        self.gather(field, &[(range.start, range.len())], out)
+    }
+
+    /// One copy per run of consecutive nodes, one submit, one mapping.
+    fn read_nodes(
+        &mut self,
+        field: NodeField,
+        nodes: &[u32],
+        out: &mut [Vec4],
+    ) -> Result<(), SimError> {
+        if nodes.len() != out.len() {
+            return Err(SimError::BadRowLength {
+                k: 1,
+                len: out.len(),
+            });
+        }
+        if nodes.len() > self.capacity {
+            // The readback buffer holds `capacity` nodes: read in pieces.
+            let c = self.capacity;
+            for (n, o) in nodes.chunks(c).zip(out.chunks_mut(c)) {
+                self.read_nodes(field, n, o)?;
+            }
             return Ok(());
         }
-        let bytes = (range.len() * 16) as u64;
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("read"),
-            });
-        encoder.copy_buffer_to_buffer(
-            self.field(field),
-            (range.start * 16) as u64,
-            &self.buffers.readback,
-            0,
-            bytes,
-        );
-        self.ctx.queue.submit([encoder.finish()]);
-        let slice = self.buffers.readback.slice(..bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.wait();
-        match rx.recv() {
-            Ok(Ok(())) => {}
-            other => {
-                return Err(SimError::Device {
-                    message: format!("mapping the readback buffer failed: {other:?}"),
-                })
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        for &i in nodes {
+            let i = i as usize;
+            check_range(&(i..i + 1), self.capacity, "allocated")?;
+            match runs.last_mut() {
+                Some((s, n)) if *s + *n == i => *n += 1,
+                _ => runs.push((i, 1)),
             }
         }
-        {
-            let view = slice.get_mapped_range().map_err(|e| SimError::Device {
-                message: format!("reading the readback buffer failed: {e}"),
-            })?;
-            out.copy_from_slice(bytemuck::cast_slice(&view));
-        }
-        self.buffers.readback.unmap();
-        Ok(())
+        self.gather(field, &runs, out)
     }
 
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError> {

@@ -12,12 +12,14 @@
 
 pub mod friction;
 pub mod needle;
+pub mod node_editor;
 pub mod puncture;
 pub mod script;
 pub mod surface_query;
 
 pub use friction::{FrictionParams, FrictionState};
 pub use needle::{Needle, NeedleError};
+pub use node_editor::{EditError, NodeEditor};
 pub use puncture::{PunctureState, Thresholds};
 pub use script::{Keyframe, PoseScript};
 pub use surface_query::{segment_triangle, SurfaceHit, TriangleGrid};

@@ -18,14 +18,23 @@ use crate::neighbours::Neighbours;
 pub fn rest_lengths(rest: &[Vec4], nb: &Neighbours, n: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; nb.index.len()];
     for i in 0..n {
-        for s in 0..nb.k {
-            let slot = i * nb.k + s;
-            if nb.weight[slot] != 0.0 {
-                out[slot] = norm(sub(rest[nb.index[slot] as usize], rest[i]));
-            }
-        }
+        out[i * nb.k..(i + 1) * nb.k].copy_from_slice(&rest_length_row(i, rest, nb));
     }
     out
+}
+
+/// The K rest lengths of node i's row (0 for empty slots).
+pub fn rest_length_row(i: usize, rest: &[Vec4], nb: &Neighbours) -> Vec<f32> {
+    (0..nb.k)
+        .map(|s| {
+            let slot = i * nb.k + s;
+            if nb.weight[slot] != 0.0 {
+                norm(sub(rest[nb.index[slot] as usize], rest[i]))
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 /// Elastic plus spring-damping force on node `i`.

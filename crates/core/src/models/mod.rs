@@ -209,6 +209,98 @@ impl ShapeInfo {
         }
     }
 
+    /// The shape information of node `i` that depends on its neighbour row and the rest
+    /// positions, as `(array, byte offset, bytes)` in the layout of [`ShapeInfo::bytes`]:
+    /// what node addition (paper section 5.1, step 4) writes for every node whose row
+    /// changed. `volume_scale` converts [`point_based::raw_volume`] into a volume (the
+    /// factor the build normalised the volumes with). With `rest_position` the node's rest
+    /// position is included (a new node). Warm-start rotations and per-step arrays are
+    /// not included.
+    pub fn node_rows(
+        &self,
+        i: usize,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        volume_scale: f64,
+        rest_position: bool,
+    ) -> Vec<(&'static str, usize, Vec<u8>)> {
+        fn row<T: bytemuck::Pod>(
+            name: &'static str,
+            i: usize,
+            v: &[T],
+        ) -> (&'static str, usize, Vec<u8>) {
+            let b: &[u8] = bytemuck::cast_slice(v);
+            (name, i * b.len(), b.to_vec())
+        }
+        let r0 = [rest[i][0], rest[i][1], rest[i][2], 0.0];
+        let mut out = Vec::new();
+        if rest_position && !matches!(self, ShapeInfo::MassSpring { .. }) {
+            out.push(row("rest_position", i, &[r0]));
+        }
+        match self {
+            ShapeInfo::MassSpring { .. } => {
+                out.push(row(
+                    "rest_length",
+                    i,
+                    &mass_spring::rest_length_row(i, rest, nb),
+                ));
+            }
+            ShapeInfo::LocalShapeMatching { .. } => {
+                out.push(row(
+                    "shape_vector",
+                    i,
+                    &[local_shape_matching::shape_vector(i, rest, nb)],
+                ));
+            }
+            ShapeInfo::DebunneMeshfree { corotation, .. } => {
+                out.push(row(
+                    "inverse_moment",
+                    i,
+                    &[mls::inverse_moment(i, rest, nb)],
+                ));
+                if corotation.is_some() {
+                    out.push(row(
+                        "shape_vector",
+                        i,
+                        &[local_shape_matching::shape_vector(i, rest, nb)],
+                    ));
+                }
+            }
+            ShapeInfo::PointBased { .. } => {
+                out.push(row(
+                    "inverse_moment",
+                    i,
+                    &[mls::inverse_moment(i, rest, nb)],
+                ));
+                let v = (point_based::raw_volume(i, rest, nb) * volume_scale) as f32;
+                out.push(row("volume", i, &[v]));
+            }
+        }
+        out
+    }
+
+    /// The factor between node volumes and [`point_based::raw_volume`] over the first `n`
+    /// nodes (1 for the models without per-node volumes).
+    pub fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
+        match self {
+            ShapeInfo::PointBased { volume, .. } => {
+                let raw: f64 = (0..n).map(|i| point_based::raw_volume(i, rest, nb)).sum();
+                let vol: f64 = volume[..n].iter().map(|&v| v as f64).sum();
+                if raw > 0.0 {
+                    vol / raw
+                } else {
+                    0.0
+                }
+            }
+            _ => 1.0,
+        }
+    }
+
+    /// Whether the model keeps a warm-start rotation per node (array `rotation`).
+    pub fn has_rotation(&self) -> bool {
+        self.bytes().iter().any(|(n, _)| *n == "rotation")
+    }
+
     /// The arrays this model allocated, with their sizes.
     pub fn arrays(&self) -> Vec<ArrayInfo> {
         self.bytes()

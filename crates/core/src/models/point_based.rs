@@ -25,22 +25,7 @@ use crate::neighbours::Neighbours;
 /// Node volumes of the first `n` nodes from the density estimate, scaled to add up to
 /// `total_volume`; slots `n..capacity` are 0.
 pub fn volumes(rest: &[Vec4], nb: &Neighbours, n: usize, total_volume: f64) -> Vec<f32> {
-    let k = nb.k;
-    let raw: Vec<f64> = (0..n)
-        .map(|i| {
-            let (mut wsum, mut ell) = (1.0f64, 0.0f64);
-            for s in 0..k {
-                let w = nb.weight[i * k + s] as f64;
-                if w == 0.0 {
-                    continue;
-                }
-                wsum += w;
-                let d = sub(rest[nb.index[i * k + s] as usize], rest[i]);
-                ell = ell.max(crate::math::norm(d) as f64);
-            }
-            ell.powi(3) / wsum
-        })
-        .collect();
+    let raw: Vec<f64> = (0..n).map(|i| raw_volume(i, rest, nb)).collect();
     let sum: f64 = raw.iter().sum();
     let mut out = vec![0.0f32; rest.len()];
     for i in 0..n {
@@ -51,6 +36,22 @@ pub fn volumes(rest: &[Vec4], nb: &Neighbours, n: usize, total_volume: f64) -> V
         };
     }
     out
+}
+
+/// The unscaled density-estimate volume `l_i^3 / (1 + sum_j w_ij)` of node i.
+pub fn raw_volume(i: usize, rest: &[Vec4], nb: &Neighbours) -> f64 {
+    let k = nb.k;
+    let (mut wsum, mut ell) = (1.0f64, 0.0f64);
+    for s in 0..k {
+        let w = nb.weight[i * k + s] as f64;
+        if w == 0.0 {
+            continue;
+        }
+        wsum += w;
+        let d = sub(rest[nb.index[i * k + s] as usize], rest[i]);
+        ell = ell.max(crate::math::norm(d) as f64);
+    }
+    ell.powi(3) / wsum
 }
 
 /// `I + J`.

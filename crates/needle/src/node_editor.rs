@@ -1,0 +1,510 @@
+//! Adding a node to the tissue and removing it again exactly (paper sections 5.1 and 5.2).
+//!
+//! Adding node i at world position x (steps 1-4 of section 5.1):
+//! 1. its K nearest current nodes N(i) among the candidates the caller gives (the needle
+//!    passes the two-ring of neighbours around the tip, so the cost does not grow with the
+//!    tissue);
+//! 2. `C = mean x_j`, `C0 = mean x0_j` over N(i), the neighbourhood's rotation R from the
+//!    polar decomposition of `sum (x_j - C)(x0_j - C0)^T` (Mueller 2016 iteration), shape
+//!    vector `v = R^T (x - C)`;
+//! 3. rest position `x0_i = C0 + v`: a neighbourhood that is only rotated and translated
+//!    gets no artificial strain;
+//! 4. weights `w_ij` from the scene's kernel on rest distances (the node's own length scale
+//!    is its farthest neighbour), then the mutual slot rule: i goes into a zero-weight
+//!    slot of j, or else replaces j's last slot, and the pair it drops (j, m) is broken on
+//!    m's side (weight 0); then the shape information of every node whose row changed
+//!    (i, N(i), and the dropped partners m, which are neighbours of neighbours) is
+//!    recomputed. A node's shape information depends only on its own row and the rest
+//!    positions in it, so these are all the nodes the paper's step 4 can affect.
+//!
+//! Every write (neighbour rows, shape bytes, the new slot's position and velocity) first
+//! records the bytes it overwrites. Removal replays that record backwards: after any
+//! sequence of additions and removals that ends with all removed, every array is bitwise
+//! what it was, and an addition or removal touches O(K^2) rows whatever the tissue's size.
+//!
+//! New nodes get the mesh nodes' mass. The PBA volume of a recomputed node is its density
+//! estimate times the factor the build normalised the volumes with (no global
+//! renormalisation, which would touch every node).
+
+use needlesim_core::math::{quat_to_mat, Vec4, QUAT_IDENTITY};
+use needlesim_core::models::mueller2016_rotation::extract_rotation;
+use needlesim_core::models::ShapeInfo;
+use needlesim_core::neighbours::{kernel_weight, Neighbours};
+use needlesim_core::scene::WeightKernel;
+use needlesim_core::{Backend, NodeField, SimError, Tissue};
+use thiserror::Error;
+
+/// Why a node cannot be added or removed.
+#[derive(Debug, Error)]
+pub enum EditError {
+    /// Every needle node slot is in use.
+    #[error(
+        "needle node capacity reached: all {capacity} node slots are in use (raise \
+         `needle.length` or `needle.spacing`, which size the needle node slots)"
+    )]
+    Capacity {
+        /// Allocated node slots.
+        capacity: usize,
+    },
+    /// None of the candidate nodes can be a neighbour.
+    #[error("cannot add a node at {position:?}: no active node among the candidates")]
+    NoNeighbours {
+        /// Where the node was to be added.
+        position: [f32; 3],
+    },
+    /// A position that is not finite.
+    #[error("cannot add a node at the non-finite position {0:?}")]
+    NonFinite([f32; 3]),
+    /// Nothing left to remove.
+    #[error("no added node to remove")]
+    NothingToRemove,
+    /// The backend refused a read or write.
+    #[error(transparent)]
+    Backend(#[from] SimError),
+}
+
+/// One overwritten piece of state.
+#[derive(Debug, Clone)]
+enum Undo {
+    /// A neighbour row as it was.
+    Row {
+        node: u32,
+        index: Vec<u32>,
+        weight: Vec<f32>,
+    },
+    /// Shape bytes as they were.
+    Shape {
+        array: &'static str,
+        offset: usize,
+        bytes: Vec<u8>,
+    },
+    /// The new slot's position and velocity as they were.
+    Slot {
+        node: u32,
+        position: Vec4,
+        velocity: Vec4,
+    },
+}
+
+/// What one addition changed.
+#[derive(Debug, Clone)]
+struct Addition {
+    node: u32,
+    undo: Vec<Undo>,
+    rest: Vec4,
+    dk: f64,
+}
+
+/// The host side of node addition and removal: a mirror of the neighbour rows and the
+/// shape information, the rest positions, and the undo log.
+#[derive(Debug, Clone)]
+pub struct NodeEditor {
+    nb: Neighbours,
+    shape: ShapeInfo,
+    rest: Vec<Vec4>,
+    /// Length scale of every node's kernel (distance of its K-th nearest rest neighbour).
+    dk: Vec<f64>,
+    kernel: WeightKernel,
+    volume_scale: f64,
+    inv_mass: f32,
+    n_mesh: usize,
+    n_active: usize,
+    log: Vec<Addition>,
+}
+
+impl NodeEditor {
+    /// The editor for `tissue` as built (before any step), with rest positions `rest` of
+    /// its mesh nodes.
+    pub fn new(tissue: &Tissue, rest: &[[f64; 3]], kernel: WeightKernel) -> NodeEditor {
+        let capacity = tissue.state.capacity();
+        let n = tissue.n_mesh;
+        let mut r = vec![[0.0f32; 4]; capacity];
+        for (o, p) in r.iter_mut().zip(rest) {
+            *o = [p[0] as f32, p[1] as f32, p[2] as f32, 0.0];
+        }
+        let nb = tissue.neighbours.clone();
+        let k = nb.k;
+        let dk = (0..capacity)
+            .map(|i| {
+                if i >= n {
+                    return 0.0;
+                }
+                (0..k)
+                    .map(|s| dist(r[i], r[nb.index[i * k + s] as usize]))
+                    .fold(0.0, f64::max)
+            })
+            .collect();
+        NodeEditor {
+            volume_scale: tissue.shape.volume_scale(&r, &nb, n),
+            shape: tissue.shape.clone(),
+            nb,
+            rest: r,
+            dk,
+            kernel,
+            inv_mass: (1.0 / tissue.node_mass) as f32,
+            n_mesh: n,
+            n_active: tissue.state.n_active,
+            log: Vec::new(),
+        }
+    }
+
+    /// Nodes simulated now.
+    pub fn n_active(&self) -> usize {
+        self.n_active
+    }
+
+    /// Nodes of the original mesh.
+    pub fn n_mesh(&self) -> usize {
+        self.n_mesh
+    }
+
+    /// Allocated node slots.
+    pub fn capacity(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Nodes added and not yet removed.
+    pub fn n_added(&self) -> usize {
+        self.log.len()
+    }
+
+    /// The neighbour rows as the backend has them.
+    pub fn neighbours(&self) -> &Neighbours {
+        &self.nb
+    }
+
+    /// The static shape information as the backend has it (per-step arrays such as
+    /// rotations and first-pass results are those of the build).
+    pub fn shape(&self) -> &ShapeInfo {
+        &self.shape
+    }
+
+    /// Rest position of node `i`.
+    pub fn rest_position(&self, i: usize) -> [f32; 3] {
+        let r = self.rest[i];
+        [r[0], r[1], r[2]]
+    }
+
+    /// Inverse mass of a free node.
+    pub fn inverse_mass(&self) -> f32 {
+        self.inv_mass
+    }
+
+    /// The active nodes within `rings` neighbour hops of `seeds` (seeds included), sorted,
+    /// each once.
+    pub fn rings(&self, seeds: &[u32], rings: usize) -> Vec<u32> {
+        let k = self.nb.k;
+        let mut set: Vec<u32> = seeds
+            .iter()
+            .copied()
+            .filter(|&s| (s as usize) < self.n_active)
+            .collect();
+        set.sort_unstable();
+        set.dedup();
+        let mut frontier = set.clone();
+        for _ in 0..rings {
+            let mut next = Vec::new();
+            for &i in &frontier {
+                let i = i as usize;
+                for s in 0..k {
+                    if self.nb.weight[i * k + s] != 0.0 {
+                        next.push(self.nb.index[i * k + s]);
+                    }
+                }
+            }
+            next.sort_unstable();
+            next.dedup();
+            next.retain(|j| set.binary_search(j).is_err() && (*j as usize) < self.n_active);
+            set.extend_from_slice(&next);
+            set.sort_unstable();
+            frontier = next;
+        }
+        set
+    }
+
+    /// Adds a node at world position `x` with velocity `v`, its neighbours chosen among
+    /// `candidates` (active node indices; others are ignored). Returns its index.
+    pub fn add_node(
+        &mut self,
+        backend: &mut dyn Backend,
+        x: [f32; 3],
+        v: [f32; 3],
+        candidates: &[u32],
+    ) -> Result<u32, EditError> {
+        if !x.iter().all(|c| c.is_finite()) {
+            return Err(EditError::NonFinite(x));
+        }
+        let i = self.n_active;
+        if i >= self.capacity() {
+            return Err(EditError::Capacity {
+                capacity: self.capacity(),
+            });
+        }
+        let k = self.nb.k;
+
+        // Step 1: the K nearest current nodes among the candidates.
+        let mut cand: Vec<u32> = candidates
+            .iter()
+            .copied()
+            .filter(|&c| (c as usize) < i)
+            .collect();
+        cand.sort_unstable();
+        cand.dedup();
+        if cand.is_empty() {
+            return Err(EditError::NoNeighbours { position: x });
+        }
+        let mut pos = vec![[0.0f32; 4]; cand.len()];
+        backend.read_nodes(NodeField::Position, &cand, &mut pos)?;
+        let xi = [x[0], x[1], x[2], 0.0];
+        let mut near: Vec<(f64, u32, Vec4)> = cand
+            .iter()
+            .zip(&pos)
+            .map(|(&c, &p)| (dist(p, xi), c, p))
+            .collect();
+        near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        near.truncate(k);
+
+        // Steps 2 and 3: rotation of the neighbourhood, shape vector, rest position.
+        let m = near.len() as f64;
+        let mut c = [0.0f64; 3];
+        let mut c0 = [0.0f64; 3];
+        for (_, j, p) in &near {
+            let r = self.rest[*j as usize];
+            for a in 0..3 {
+                c[a] += p[a] as f64 / m;
+                c0[a] += r[a] as f64 / m;
+            }
+        }
+        let mut a_mat = [[0.0f64; 3]; 3];
+        let mut scale = 0.0f64;
+        for (_, j, p) in &near {
+            let r = self.rest[*j as usize];
+            let d: [f64; 3] = std::array::from_fn(|a| p[a] as f64 - c[a]);
+            let d0: [f64; 3] = std::array::from_fn(|a| r[a] as f64 - c0[a]);
+            for row in 0..3 {
+                for col in 0..3 {
+                    a_mat[row][col] += d[row] * d0[col];
+                }
+            }
+            scale += d0.iter().map(|e| e * e).sum::<f64>();
+        }
+        let a32: [[f32; 3]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|q| (a_mat[r][q] / scale.max(1e-300)) as f32)
+        });
+        let q = extract_rotation(&a32, QUAT_IDENTITY, 50);
+        let rot = quat_to_mat(q);
+        let d: [f64; 3] = std::array::from_fn(|a| x[a] as f64 - c[a]);
+        // v = R^T d
+        let v_shape: [f64; 3] =
+            std::array::from_fn(|col| (0..3).map(|row| rot[row][col] as f64 * d[row]).sum());
+        let x0: Vec4 = [
+            (c0[0] + v_shape[0]) as f32,
+            (c0[1] + v_shape[1]) as f32,
+            (c0[2] + v_shape[2]) as f32,
+            0.0,
+        ];
+
+        let mut undo = Vec::new();
+        let old = Addition {
+            node: i as u32,
+            undo: Vec::new(),
+            rest: self.rest[i],
+            dk: self.dk[i],
+        };
+        self.rest[i] = x0;
+        let dki = near
+            .iter()
+            .map(|(_, j, _)| dist(self.rest[*j as usize], x0))
+            .fold(0.0, f64::max);
+        self.dk[i] = dki;
+
+        // Step 4: weights and the mutual slot rule.
+        let mut touched: Vec<u32> = Vec::new();
+        let mut row_index = vec![0u32; k];
+        let mut row_weight = vec![0.0f32; k];
+        let mut filled = 0;
+        let mut pairs = Vec::new();
+        for (_, j, _) in &near {
+            let ju = *j as usize;
+            let w = kernel_weight(self.kernel, dist(self.rest[ju], x0), dki, self.dk[ju]) as f32;
+            if w == 0.0 {
+                continue;
+            }
+            row_index[filled] = *j;
+            row_weight[filled] = w;
+            filled += 1;
+            pairs.push((*j, w));
+        }
+        if pairs.is_empty() {
+            self.rest[i] = old.rest;
+            self.dk[i] = old.dk;
+            return Err(EditError::NoNeighbours { position: x });
+        }
+        self.save_row(i as u32, &mut touched, &mut undo);
+        self.nb.index[i * k..(i + 1) * k].copy_from_slice(&row_index);
+        self.nb.weight[i * k..(i + 1) * k].copy_from_slice(&row_weight);
+        for &(j, w) in &pairs {
+            let ju = j as usize;
+            let row = ju * k..(ju + 1) * k;
+            let slot = match self.nb.weight[row.clone()].iter().position(|&x| x == 0.0) {
+                Some(s) => s,
+                None => {
+                    // Replace the last slot and break the dropped pair on the other side.
+                    let s = k - 1;
+                    let dropped = self.nb.index[ju * k + s] as usize;
+                    if let Some(r) = (0..k).find(|&r| {
+                        self.nb.index[dropped * k + r] == j
+                            && self.nb.weight[dropped * k + r] != 0.0
+                    }) {
+                        self.save_row(dropped as u32, &mut touched, &mut undo);
+                        self.nb.weight[dropped * k + r] = 0.0;
+                    }
+                    s
+                }
+            };
+            self.save_row(j, &mut touched, &mut undo);
+            self.nb.index[ju * k + slot] = i as u32;
+            self.nb.weight[ju * k + slot] = w;
+        }
+        for &t in &touched {
+            let t = t as usize;
+            backend.write_neighbour_rows(
+                t,
+                &self.nb.index[t * k..(t + 1) * k],
+                &self.nb.weight[t * k..(t + 1) * k],
+            )?;
+        }
+
+        // Shape information of every node whose row changed.
+        for &t in &touched {
+            let rows = self.shape.node_rows(
+                t as usize,
+                &self.rest,
+                &self.nb,
+                self.volume_scale,
+                t as usize == i,
+            );
+            for (array, offset, bytes) in rows {
+                self.write_shape(backend, array, offset, &bytes, &mut undo)?;
+            }
+        }
+        if self.shape.has_rotation() {
+            self.write_shape(
+                backend,
+                "rotation",
+                i * 16,
+                bytemuck::bytes_of(&q),
+                &mut undo,
+            )?;
+        }
+
+        // The slot's state.
+        let mut old_p = [[0.0f32; 4]];
+        let mut old_v = [[0.0f32; 4]];
+        backend.read(NodeField::Position, i..i + 1, &mut old_p)?;
+        backend.read(NodeField::Velocity, i..i + 1, &mut old_v)?;
+        undo.push(Undo::Slot {
+            node: i as u32,
+            position: old_p[0],
+            velocity: old_v[0],
+        });
+        backend.write(NodeField::Position, i, &[[x[0], x[1], x[2], self.inv_mass]])?;
+        backend.write(NodeField::Velocity, i, &[[v[0], v[1], v[2], 0.0]])?;
+        backend.set_n_active(i + 1)?;
+        self.n_active = i + 1;
+        self.log.push(Addition { undo, ..old });
+        Ok(i as u32)
+    }
+
+    /// Removes the most recently added node, restoring every row it changed.
+    pub fn remove_last(&mut self, backend: &mut dyn Backend) -> Result<u32, EditError> {
+        let add = self.log.pop().ok_or(EditError::NothingToRemove)?;
+        let k = self.nb.k;
+        let i = add.node as usize;
+        backend.set_n_active(i)?;
+        self.n_active = i;
+        for u in add.undo.iter().rev() {
+            match u {
+                Undo::Row {
+                    node,
+                    index,
+                    weight,
+                } => {
+                    let t = *node as usize;
+                    self.nb.index[t * k..(t + 1) * k].copy_from_slice(index);
+                    self.nb.weight[t * k..(t + 1) * k].copy_from_slice(weight);
+                    backend.write_neighbour_rows(t, index, weight)?;
+                }
+                Undo::Shape {
+                    array,
+                    offset,
+                    bytes,
+                } => {
+                    self.shape_bytes(array)[*offset..*offset + bytes.len()].copy_from_slice(bytes);
+                    backend.write_shape_bytes(array, *offset, bytes)?;
+                }
+                Undo::Slot {
+                    node,
+                    position,
+                    velocity,
+                } => {
+                    backend.write(NodeField::Position, *node as usize, &[*position])?;
+                    backend.write(NodeField::Velocity, *node as usize, &[*velocity])?;
+                }
+            }
+        }
+        self.rest[i] = add.rest;
+        self.dk[i] = add.dk;
+        Ok(add.node)
+    }
+
+    /// Records row `node` before its first change in this addition.
+    fn save_row(&self, node: u32, touched: &mut Vec<u32>, undo: &mut Vec<Undo>) {
+        if touched.contains(&node) {
+            return;
+        }
+        touched.push(node);
+        let k = self.nb.k;
+        let t = node as usize;
+        undo.push(Undo::Row {
+            node,
+            index: self.nb.index[t * k..(t + 1) * k].to_vec(),
+            weight: self.nb.weight[t * k..(t + 1) * k].to_vec(),
+        });
+    }
+
+    fn shape_bytes(&mut self, array: &str) -> &mut [u8] {
+        self.shape
+            .bytes_mut()
+            .into_iter()
+            .find(|(n, _)| *n == array)
+            .map(|(_, b)| b)
+            .expect("array listed by ShapeInfo::node_rows")
+    }
+
+    fn write_shape(
+        &mut self,
+        backend: &mut dyn Backend,
+        array: &'static str,
+        offset: usize,
+        bytes: &[u8],
+        undo: &mut Vec<Undo>,
+    ) -> Result<(), EditError> {
+        let target = &mut self.shape_bytes(array)[offset..offset + bytes.len()];
+        undo.push(Undo::Shape {
+            array,
+            offset,
+            bytes: target.to_vec(),
+        });
+        target.copy_from_slice(bytes);
+        backend.write_shape_bytes(array, offset, bytes)?;
+        Ok(())
+    }
+}
+
+fn dist(a: Vec4, b: Vec4) -> f64 {
+    (0..3)
+        .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
