@@ -17,7 +17,9 @@
 #![warn(missing_docs)]
 
 pub mod info;
+pub mod needle_output;
 pub mod output;
+pub mod plot;
 pub mod runner;
 
 pub use info::SceneInfo;

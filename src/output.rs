@@ -52,44 +52,44 @@ impl CsvWriter {
 }
 
 /// Writes `surface/surface_NNNNN.vtp` per frame and `surface.pvd` beside the `surface`
-/// folder.
+/// folder. Each frame holds the surface triangles of that frame (a needle splits one) and,
+/// as vertex cells, the needle nodes, with the point data `displacement` and `needle`
+/// (1 on needle nodes).
 pub struct SurfaceWriter {
     dir: PathBuf,
-    /// Node index of each surface point.
-    points: Vec<u32>,
-    /// Triangles in surface-point indices.
-    triangles: Vec<[u32; 3]>,
     frames: Vec<(f64, String)>,
 }
 
 impl SurfaceWriter {
-    /// Prepares the writer for the given surface triangles (node indices).
-    pub fn new(out_dir: &Path, triangles: &[[u32; 3]]) -> std::io::Result<SurfaceWriter> {
-        let dir = out_dir.join("surface");
-        std::fs::create_dir_all(&dir)?;
-        let mut map = std::collections::HashMap::new();
-        let mut points = Vec::new();
-        let triangles = triangles
-            .iter()
-            .map(|t| {
-                t.map(|i| {
-                    *map.entry(i).or_insert_with(|| {
-                        points.push(i);
-                        (points.len() - 1) as u32
-                    })
-                })
-            })
-            .collect();
+    /// Creates the `surface` folder.
+    pub fn new(out_dir: &Path) -> std::io::Result<SurfaceWriter> {
+        std::fs::create_dir_all(out_dir.join("surface"))?;
         Ok(SurfaceWriter {
             dir: out_dir.to_path_buf(),
-            points,
-            triangles,
             frames: Vec::new(),
         })
     }
 
-    /// Writes one frame.
-    pub fn frame(&mut self, time: f64, pos: &[[f32; 4]], rest: &[[f64; 3]]) -> std::io::Result<()> {
+    /// Writes one frame: `triangles` and `vertices` are node indices into `pos` and `rest`.
+    pub fn frame(
+        &mut self,
+        time: f64,
+        pos: &[[f32; 4]],
+        rest: &[[f64; 3]],
+        triangles: &[[u32; 3]],
+        vertices: &[u32],
+    ) -> std::io::Result<()> {
+        let mut map = std::collections::HashMap::new();
+        let mut points: Vec<u32> = Vec::new();
+        let mut local = |i: u32| -> u32 {
+            *map.entry(i).or_insert_with(|| {
+                points.push(i);
+                (points.len() - 1) as u32
+            })
+        };
+        let tris: Vec<[u32; 3]> = triangles.iter().map(|t| t.map(&mut local)).collect();
+        let verts: Vec<u32> = vertices.iter().map(|&v| local(v)).collect();
+        let needle: std::collections::HashSet<u32> = vertices.iter().copied().collect();
         let name = format!("surface/surface_{:05}.vtp", self.frames.len());
         let mut out = BufWriter::new(File::create(self.dir.join(&name))?);
         writeln!(out, r#"<?xml version="1.0"?>"#)?;
@@ -100,25 +100,29 @@ impl SurfaceWriter {
         writeln!(out, "<PolyData>")?;
         writeln!(
             out,
-            r#"<Piece NumberOfPoints="{}" NumberOfVerts="0" NumberOfLines="0" NumberOfStrips="0" NumberOfPolys="{}">"#,
-            self.points.len(),
-            self.triangles.len()
+            r#"<Piece NumberOfPoints="{}" NumberOfVerts="{}" NumberOfLines="0" NumberOfStrips="0" NumberOfPolys="{}">"#,
+            points.len(),
+            verts.len(),
+            tris.len()
         )?;
         writeln!(
             out,
             r#"<Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">"#
         )?;
-        for &i in &self.points {
+        for &i in &points {
             let p = pos[i as usize];
             writeln!(out, "{} {} {}", p[0], p[1], p[2])?;
         }
         writeln!(out, "</DataArray></Points>")?;
-        writeln!(out, r#"<PointData Vectors="displacement">"#)?;
+        writeln!(
+            out,
+            r#"<PointData Vectors="displacement" Scalars="needle">"#
+        )?;
         writeln!(
             out,
             r#"<DataArray type="Float32" Name="displacement" NumberOfComponents="3" format="ascii">"#
         )?;
-        for &i in &self.points {
+        for &i in &points {
             let (p, r) = (pos[i as usize], rest[i as usize]);
             writeln!(
                 out,
@@ -128,25 +132,41 @@ impl SurfaceWriter {
                 (p[2] as f64 - r[2]) as f32
             )?;
         }
-        writeln!(out, "</DataArray></PointData>")?;
-        writeln!(out, "<Polys>")?;
-        writeln!(
-            out,
-            r#"<DataArray type="Int32" Name="connectivity" format="ascii">"#
-        )?;
-        for t in &self.triangles {
-            writeln!(out, "{} {} {}", t[0], t[1], t[2])?;
-        }
         writeln!(out, "</DataArray>")?;
         writeln!(
             out,
-            r#"<DataArray type="Int32" Name="offsets" format="ascii">"#
+            r#"<DataArray type="UInt8" Name="needle" format="ascii">"#
         )?;
-        for k in 1..=self.triangles.len() {
-            write!(out, "{} ", 3 * k)?;
+        for i in &points {
+            write!(out, "{} ", needle.contains(i) as u8)?;
         }
-        writeln!(out, "\n</DataArray>")?;
-        writeln!(out, "</Polys>\n</Piece>\n</PolyData>\n</VTKFile>")?;
+        writeln!(out, "\n</DataArray></PointData>")?;
+        let cells = |out: &mut BufWriter<File>, tag: &str, conn: &[u32], per: usize| {
+            writeln!(out, "<{tag}>")?;
+            writeln!(
+                out,
+                r#"<DataArray type="Int32" Name="connectivity" format="ascii">"#
+            )?;
+            for c in conn.chunks(per) {
+                for v in c {
+                    write!(out, "{v} ")?;
+                }
+                writeln!(out)?;
+            }
+            writeln!(out, "</DataArray>")?;
+            writeln!(
+                out,
+                r#"<DataArray type="Int32" Name="offsets" format="ascii">"#
+            )?;
+            for k in 1..=conn.len() / per {
+                write!(out, "{} ", per * k)?;
+            }
+            writeln!(out, "\n</DataArray>\n</{tag}>")
+        };
+        cells(&mut out, "Verts", &verts, 1)?;
+        let flat: Vec<u32> = tris.iter().flatten().copied().collect();
+        cells(&mut out, "Polys", &flat, 3)?;
+        writeln!(out, "</Piece>\n</PolyData>\n</VTKFile>")?;
         out.flush()?;
         self.frames.push((time, name));
         Ok(())

@@ -2,12 +2,12 @@
 //! (CSV) and surface meshes (VTK XML PolyData with a .pvd time series).
 
 use crate::output::{CsvWriter, SurfaceWriter};
-use needlesim_core::geometry;
 use needlesim_core::scene::BackendChoice;
 use needlesim_core::{
     Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue,
 };
 use needlesim_gpu::GpuBackend;
+use needlesim_needle::{NeedleSample, Simulation, SimulationError};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -32,6 +32,9 @@ pub enum RunError {
     /// The thread pool could not be created.
     #[error(transparent)]
     Threads(#[from] needlesim_core::cpu::ThreadPoolError),
+    /// The needle simulation failed (bad `[needle]` table, capacity reached, ...).
+    #[error(transparent)]
+    Needle(#[from] SimulationError),
     /// The GPU backend was asked for and cannot run.
     #[error(transparent)]
     Gpu(#[from] needlesim_gpu::GpuError),
@@ -105,6 +108,8 @@ pub struct RunSummary {
     pub files: Vec<PathBuf>,
     /// Warnings (for example the GPU fallback of `backend = "auto"`).
     pub warnings: Vec<String>,
+    /// The needle's record of every step (scenes with a needle).
+    pub needle: Option<Vec<NeedleSample>>,
 }
 
 impl RunSummary {
@@ -183,22 +188,26 @@ fn metrics(
 }
 
 /// Builds and runs a scene. `progress(steps_done, steps_total)` is called after every
-/// frame.
+/// frame. A scene with a `[needle]` table also writes the needle force of every step
+/// (`needle_force.csv`) and its plots against depth and time (`needle_force.png`,
+/// `needle_force_time.png`).
 pub fn run_scene(
     scene: &Scene,
     options: &RunOptions,
     mut progress: impl FnMut(u64, u64),
 ) -> Result<RunSummary, RunError> {
     let start = Instant::now();
-    let cloud = geometry::build(&scene.tissue.geometry, &scene.base_dir)?;
-    let rest = cloud.positions.clone();
-    let tissue = Tissue::from_cloud(scene, cloud, 0)?;
-    let triangles = tissue.triangles.clone();
-    let dt = tissue.step.dt as f64;
-    let (mut backend, warning) = make_backend(scene, tissue, options.backend, options.threads)?;
+    let prep = Simulation::prepare(scene).map_err(|e| match e {
+        SimulationError::Scene(s) => RunError::Scene(s),
+        other => RunError::Needle(other),
+    })?;
+    let dt = prep.tissue.step.dt as f64;
+    let (backend, warning) =
+        make_backend(scene, prep.tissue.clone(), options.backend, options.threads)?;
+    let mut sim = prep.start(backend)?;
+    let has_needle = sim.needle().is_some();
     let total = options.steps.unwrap_or(scene.run.steps);
     let every = scene.run.output_every;
-    let n = backend.n_active();
 
     let io = |path: &Path| {
         let path = path.to_path_buf();
@@ -212,19 +221,19 @@ pub fn run_scene(
             CsvWriter::create(&options.out_dir.join("frames.csv")).map_err(io(&options.out_dir))?,
         );
         if scene.run.surface_frames {
-            surface = Some(
-                SurfaceWriter::new(&options.out_dir, &triangles).map_err(io(&options.out_dir))?,
-            );
+            surface = Some(SurfaceWriter::new(&options.out_dir).map_err(io(&options.out_dir))?);
         }
     }
 
-    let mut pos = vec![[0.0f32; 4]; n];
-    let mut vel = vec![[0.0f32; 4]; n];
-    let mut force = vec![[0.0f32; 4]; n];
     let mut frames = Vec::new();
     let mut step_time = Duration::ZERO;
     let mut done = 0u64;
     loop {
+        let n = sim.backend().n_active();
+        let mut pos = vec![[0.0f32; 4]; n];
+        let mut vel = vec![[0.0f32; 4]; n];
+        let mut force = vec![[0.0f32; 4]; n];
+        let backend = sim.backend();
         backend.read(NodeField::Position, 0..n, &mut pos)?;
         backend.read(NodeField::Velocity, 0..n, &mut vel)?;
         backend.read(NodeField::Force, 0..n, &mut force)?;
@@ -238,12 +247,20 @@ pub fn run_scene(
                 .into());
             }
         }
+        let rest = sim.rest_positions();
         let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
         if let Some(w) = csv.as_mut() {
             w.row(&m).map_err(io(&options.out_dir))?;
         }
         if let Some(w) = surface.as_mut() {
-            w.frame(m.time, &pos, &rest).map_err(io(&options.out_dir))?;
+            w.frame(
+                m.time,
+                &pos,
+                &rest,
+                sim.triangles(),
+                &sim.needle_node_indices(),
+            )
+            .map_err(io(&options.out_dir))?;
         }
         frames.push(m);
         progress(done, total);
@@ -252,8 +269,8 @@ pub fn run_scene(
         }
         let chunk = every.min(total - done);
         let t0 = Instant::now();
-        backend.step(chunk);
-        backend.finish();
+        sim.step_n(chunk)?;
+        sim.backend().finish();
         step_time += t0.elapsed();
         done += chunk;
     }
@@ -264,14 +281,21 @@ pub fn run_scene(
     if let Some(w) = surface {
         files.extend(w.finish().map_err(io(&options.out_dir))?);
     }
+    if has_needle && options.write_files {
+        files.extend(
+            crate::needle_output::write(&sim, &options.out_dir).map_err(io(&options.out_dir))?,
+        );
+    }
+    let nodes = sim.backend().n_active();
     Ok(RunSummary {
-        backend: backend.name(),
-        nodes: n,
+        backend: sim.backend().name(),
+        nodes,
         steps: done,
         step_time,
         total_time: start.elapsed(),
         frames,
         files,
         warnings: warning.into_iter().collect(),
+        needle: has_needle.then(|| sim.history().to_vec()),
     })
 }

@@ -38,7 +38,8 @@ pub enum SceneError {
 }
 
 impl SceneError {
-    pub(crate) fn invalid(key: impl Into<String>, reason: impl Into<String>) -> Self {
+    /// An out-of-range value of the dotted key `key`.
+    pub fn invalid(key: impl Into<String>, reason: impl Into<String>) -> Self {
         SceneError::InvalidValue {
             key: key.into(),
             reason: reason.into(),

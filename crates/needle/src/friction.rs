@@ -51,6 +51,20 @@ fn default_stick_speed() -> f64 {
     1e-4
 }
 
+impl Default for FrictionParams {
+    /// 0.01 N static threshold, Coulomb coefficient 0.2, 0.1 N s/m viscous, stick below
+    /// 0.1 mm/s: values of the order of the shipped scenes' node forces, not measured
+    /// tissue constants.
+    fn default() -> Self {
+        FrictionParams {
+            static_threshold: 0.01,
+            dynamic: 0.2,
+            viscous: 0.1,
+            stick_speed: default_stick_speed(),
+        }
+    }
+}
+
 impl FrictionParams {
     /// Checks that every value is finite and non-negative (the stick speed positive).
     pub fn validate(&self) -> Result<(), String> {

@@ -10,16 +10,22 @@
 
 #![warn(missing_docs)]
 
+pub mod config;
 pub mod friction;
 pub mod needle;
 pub mod node_editor;
 pub mod puncture;
 pub mod script;
+pub mod simulation;
 pub mod surface_query;
 
+pub use config::NeedleConfig;
 pub use friction::{FrictionParams, FrictionState};
 pub use needle::{Needle, NeedleError};
 pub use node_editor::{EditError, NodeEditor};
 pub use puncture::{PunctureState, Thresholds};
 pub use script::{Keyframe, PoseScript};
+pub use simulation::{
+    NeedleForce, NeedleNode, NeedleSample, NodeRole, Prepared, Simulation, SimulationError,
+};
 pub use surface_query::{segment_triangle, SurfaceHit, TriangleGrid};

@@ -1,0 +1,83 @@
+//! The needle's output files: `needle_force.csv` (one row per step) and plots of the
+//! needle force against depth and against time.
+
+use crate::plot::{line_plot, Labels, Series};
+use needlesim_needle::{PunctureState, Simulation};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Column names of `needle_force.csv`. `depth_m` is the tip's distance past the point
+/// where it first touched the surface, along the needle (negative before contact, from the
+/// start tip if it never touched); `axial_force_n` is positive when the tissue resists
+/// insertion and negative when it resists extraction.
+pub const NEEDLE_CSV_HEADER: &str =
+    "step,time_s,depth_m,axial_force_n,lateral_force_n,state,active_nodes,needle_nodes";
+
+fn state_name(s: PunctureState) -> &'static str {
+    match s {
+        PunctureState::Outside => "outside",
+        PunctureState::Touching => "touching",
+        PunctureState::Inside => "inside",
+    }
+}
+
+/// Writes the CSV and both plots into `dir`; returns the paths.
+pub fn write(sim: &Simulation, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let csv = dir.join("needle_force.csv");
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&csv)?);
+    writeln!(out, "{NEEDLE_CSV_HEADER}")?;
+    let mut depth = Vec::new();
+    for s in sim.history() {
+        let d = sim.depth_of(s.tip, s.direction);
+        depth.push(d);
+        writeln!(
+            out,
+            "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{}",
+            s.step,
+            s.time,
+            d,
+            s.force.axial,
+            s.force.lateral,
+            state_name(s.state),
+            s.active_nodes,
+            s.needle_nodes
+        )?;
+    }
+    out.flush()?;
+    let h = sim.history();
+    let series = |x: &dyn Fn(usize) -> f64| -> [Series<'static>; 2] {
+        [
+            Series {
+                label: "axial",
+                colour: [200, 40, 40],
+                points: (0..h.len()).map(|i| (x(i), h[i].force.axial)).collect(),
+            },
+            Series {
+                label: "lateral",
+                colour: [40, 90, 200],
+                points: (0..h.len()).map(|i| (x(i), h[i].force.lateral)).collect(),
+            },
+        ]
+    };
+    let by_depth = dir.join("needle_force.png");
+    line_plot(
+        &by_depth,
+        &Labels {
+            title: "needle force against depth",
+            x: "tip depth past first contact (mm)",
+            y: "force on needle (N)",
+        },
+        &series(&|i| depth[i] * 1e3),
+    )?;
+    let by_time = dir.join("needle_force_time.png");
+    line_plot(
+        &by_time,
+        &Labels {
+            title: "needle force against time",
+            x: "time (s)",
+            y: "force on needle (N)",
+        },
+        &series(&|i| h[i].time),
+    )?;
+    Ok(vec![csv, by_depth, by_time])
+}
