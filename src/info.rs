@@ -35,10 +35,15 @@ pub struct SceneInfo {
 }
 
 impl SceneInfo {
-    /// Builds the scene's tissue and summarises it.
+    /// Builds the scene's tissue (with its needle node slots, if it has a needle) and
+    /// summarises it.
     pub fn of(scene: &Scene) -> Result<SceneInfo, SceneError> {
-        let t = Tissue::from_scene(scene)?;
-        Ok(Self::of_tissue(scene, &t))
+        use needlesim_needle::{Simulation, SimulationError};
+        let prep = Simulation::prepare(scene).map_err(|e| match e {
+            SimulationError::Scene(s) => s,
+            other => SceneError::invalid("needle", other.to_string()),
+        })?;
+        Ok(Self::of_tissue(scene, &prep.tissue))
     }
 
     /// Summarises an already built tissue.

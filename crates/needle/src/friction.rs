@@ -10,7 +10,7 @@
 //! - Slip: the node is projected onto the shaft and receives the dynamic friction force
 //!   `f_df = (k_vf w + k_df sign(w) |f_N|) t` with `w = (v_needle - v_node) . t`, the
 //!   needle's axial speed relative to the node. It sticks again when `|w|` falls below the
-//!   stick speed.
+//!   stick speed while `|f_p|` is within the static threshold.
 //!
 //! Sign convention: the paper's equation 2 reads `k_vf v_i^p + k_df sign(v_needle^p -
 //! v_i^p) |f_N| t`. Its Coulomb term is the one above: it drags the node the way the needle
@@ -102,7 +102,9 @@ pub fn split(f: [f64; 3], t: [f64; 3]) -> (f64, [f64; 3]) {
 
 /// The state after this step: a sticking node slips when its axial elastic force exceeds
 /// the threshold; a slipping node sticks when the relative axial speed is below the stick
-/// speed.
+/// speed and the axial force is within the threshold (Karnopp's band: a node whose force
+/// would make it slip again at once keeps slipping, so the state does not chatter from
+/// step to step).
 pub fn next_state(
     state: FrictionState,
     elastic: [f64; 3],
@@ -115,7 +117,10 @@ pub fn next_state(
         FrictionState::Stick if split(elastic, t).0.abs() > p.static_threshold => {
             FrictionState::Slip
         }
-        FrictionState::Slip if dot(sub(v_needle, v_node), t).abs() < p.stick_speed => {
+        FrictionState::Slip
+            if dot(sub(v_needle, v_node), t).abs() < p.stick_speed
+                && split(elastic, t).0.abs() <= p.static_threshold =>
+        {
             FrictionState::Stick
         }
         s => s,
@@ -171,6 +176,29 @@ mod tests {
         );
         assert_eq!(
             next_state(FrictionState::Slip, [0.0; 3], [0.0095, 0.0, 0.0], v, t, &P),
+            FrictionState::Stick
+        );
+        // Slow, but pulled harder than the static threshold: keeps slipping (no chatter).
+        assert_eq!(
+            next_state(
+                FrictionState::Slip,
+                [0.6, 0.0, 0.0],
+                [0.0095, 0.0, 0.0],
+                v,
+                t,
+                &P
+            ),
+            FrictionState::Slip
+        );
+        assert_eq!(
+            next_state(
+                FrictionState::Slip,
+                [0.3, 0.0, 0.0],
+                [0.0095, 0.0, 0.0],
+                v,
+                t,
+                &P
+            ),
             FrictionState::Stick
         );
     }
