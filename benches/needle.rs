@@ -1,0 +1,122 @@
+//! Needle benches (paper section 5):
+//! - `add_remove/<nodes>`: one node addition at the cube's centre followed by its removal
+//!   (NodeEditor on one CPU thread), at `NEEDLESIM_BENCH_SIZES` target node counts
+//!   (default `639,10932,100000`): the cost should not grow with the node count;
+//! - `step_inserted/<backend>/10932`: one full `Simulation` step of a 10932-node LSHM cube
+//!   with the needle 6 cm inside (Surface, Shaft and Tip nodes, friction, force readback),
+//!   on one CPU thread, all CPU threads and the GPU when an adapter is found.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use needlesim::gpu::GpuBackend;
+use needlesim::needle::{NodeEditor, PunctureState, Simulation};
+use needlesim::{Backend, CpuBackend, Scene, Threading, Tissue};
+use std::path::Path;
+
+mod common;
+use common::{cube, MODELS};
+
+fn sizes() -> Vec<usize> {
+    std::env::var("NEEDLESIM_BENCH_SIZES")
+        .ok()
+        .map(|s| s.split(',').map(|x| x.trim().parse().expect("node count")).collect())
+        .unwrap_or(vec![639, 10932, 100_000])
+}
+
+fn add_remove(c: &mut Criterion) {
+    let mut group = c.benchmark_group("add_remove");
+    group.sample_size(20);
+    let (_, lshm) = MODELS[1];
+    for nodes in sizes() {
+        let scene = cube(lshm, nodes, 1e-3, 1.0);
+        let rest = needlesim::core::geometry::build(&scene.tissue.geometry, &scene.base_dir)
+            .unwrap()
+            .positions;
+        let tissue = Tissue::from_scene_with_capacity(&scene, 4).unwrap();
+        let mut editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
+        let mut backend = CpuBackend::new(tissue, Threading::Single).unwrap();
+        let centre = [0.0503f32, 0.0497, 0.0501];
+        let nearest = (0..rest.len())
+            .min_by(|&a, &b| {
+                let d = |i: usize| {
+                    (0..3)
+                        .map(|k| (rest[i][k] - centre[k] as f64).powi(2))
+                        .sum::<f64>()
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap() as u32;
+        group.bench_function(BenchmarkId::from_parameter(rest.len()), |b| {
+            b.iter(|| {
+                let seeds = editor.rings(&[nearest], 2);
+                editor
+                    .add_node(&mut backend, centre, [0.0; 3], &seeds)
+                    .unwrap();
+                editor.remove_last(&mut backend).unwrap();
+            })
+        });
+    }
+    group.finish();
+}
+
+const INSERTED: &str = r#"
+[tissue]
+neighbours = 16
+geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 10932 }
+[material]
+model = "local_shape_matching"
+stiffness = 20.0
+forces = "cluster"
+[physics]
+dt = 2e-4
+damping = 4.0
+[[fixed]]
+axis = "x"
+above = 0.0995
+[needle]
+base = [-0.105, 0.0503, 0.0497]
+direction = [1.0, 0.0, 0.0]
+length = 0.1
+[[needle.keyframe]]
+action = "move"
+direction = [1.0, 0.0, 0.0]
+speed = 0.1
+duration = 0.65
+[[needle.keyframe]]
+action = "pause"
+duration = 100.0
+"#;
+
+fn step_inserted(c: &mut Criterion) {
+    let scene = Scene::from_toml_str(INSERTED, Path::new(".")).unwrap();
+    let mut group = c.benchmark_group("step_inserted");
+    group.sample_size(10);
+    let prep = |scene: &Scene| Simulation::prepare(scene).unwrap();
+    let mut runs: Vec<(&str, Simulation)> = Vec::new();
+    for (name, threading) in [("cpu-1", Threading::Single), ("cpu-all", Threading::Parallel)] {
+        let p = prep(&scene);
+        let b = CpuBackend::new(p.tissue.clone(), threading).unwrap();
+        runs.push((name, p.start(Box::new(b)).unwrap()));
+    }
+    let p = prep(&scene);
+    match GpuBackend::new(&p.tissue) {
+        Ok(g) => {
+            eprintln!("GPU: {}", g.adapter());
+            runs.push(("gpu", p.start(Box::new(g)).unwrap()));
+        }
+        Err(e) => eprintln!("GPU bench skipped: {e}"),
+    }
+    for (name, sim) in runs.iter_mut() {
+        sim.set_record(false);
+        // 6 cm in at 10 cm/s (3250 steps of 0.2 ms), then the needle holds still.
+        sim.step_n(3300).unwrap();
+        assert_eq!(sim.state(), PunctureState::Inside);
+        let n = sim.backend().n_active();
+        eprintln!("{name}: {} needle nodes, {n} active nodes", sim.needle_nodes().len());
+        group.bench_function(BenchmarkId::new(*name, n), |b| b.iter(|| sim.step().unwrap()));
+        sim.backend().check_finite().unwrap();
+    }
+    group.finish();
+}
+
+criterion_group!(benches, add_remove, step_inserted);
+criterion_main!(benches);
