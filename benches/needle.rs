@@ -18,7 +18,11 @@ use common::{cube, MODELS};
 fn sizes() -> Vec<usize> {
     std::env::var("NEEDLESIM_BENCH_SIZES")
         .ok()
-        .map(|s| s.split(',').map(|x| x.trim().parse().expect("node count")).collect())
+        .map(|s| {
+            s.split(',')
+                .map(|x| x.trim().parse().expect("node count"))
+                .collect()
+        })
         .unwrap_or(vec![639, 10932, 100_000])
 }
 
@@ -92,7 +96,10 @@ fn step_inserted(c: &mut Criterion) {
     group.sample_size(10);
     let prep = |scene: &Scene| Simulation::prepare(scene).unwrap();
     let mut runs: Vec<(&str, Simulation)> = Vec::new();
-    for (name, threading) in [("cpu-1", Threading::Single), ("cpu-all", Threading::Parallel)] {
+    for (name, threading) in [
+        ("cpu-1", Threading::Single),
+        ("cpu-all", Threading::Parallel),
+    ] {
         let p = prep(&scene);
         let b = CpuBackend::new(p.tissue.clone(), threading).unwrap();
         runs.push((name, p.start(Box::new(b)).unwrap()));
@@ -111,8 +118,13 @@ fn step_inserted(c: &mut Criterion) {
         sim.step_n(3300).unwrap();
         assert_eq!(sim.state(), PunctureState::Inside);
         let n = sim.backend().n_active();
-        eprintln!("{name}: {} needle nodes, {n} active nodes", sim.needle_nodes().len());
-        group.bench_function(BenchmarkId::new(*name, n), |b| b.iter(|| sim.step().unwrap()));
+        eprintln!(
+            "{name}: {} needle nodes, {n} active nodes",
+            sim.needle_nodes().len()
+        );
+        group.bench_function(BenchmarkId::new(*name, n), |b| {
+            b.iter(|| sim.step().unwrap())
+        });
         sim.backend().check_finite().unwrap();
     }
     group.finish();

@@ -32,6 +32,6 @@ pub use needlesim_gpu as gpu;
 pub use needlesim_needle as needle;
 pub use runner::{make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary};
 
-/// The default scene of `needlesim run` without a scene file: a soft cube clamped on one
-/// face, sagging under gravity until it settles (local shape matching, 648 nodes).
-pub const DEFAULT_SCENE: &str = include_str!("../scenes/cube_sag_lshm.toml");
+/// The default scene of `needlesim run` without a scene file: the paper's experiment, a
+/// needle moved 15 cm into a 639-node cube and rotated 25 degrees (local shape matching).
+pub const DEFAULT_SCENE: &str = include_str!("../scenes/paper_insertion_lshm.toml");

@@ -294,3 +294,50 @@ fn bad_obj_files_are_rejected_with_the_reason() {
         "{msg}"
     );
 }
+
+/// A `[needle]` table with a bad value names the key; the capacity error names the fix.
+#[test]
+fn bad_needle_tables_name_the_key() {
+    use needlesim::needle::{Simulation, SimulationError};
+    let needle =
+        "[needle]\nbase = [-0.05, 0.05, 0.05]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.04\n";
+    let with = |edit: &str| format!("{GOOD}{needle}{edit}");
+    let cases: Vec<(String, &str)> = vec![
+        (with("colour = \"red\"\n"), "colour"),
+        (with("").replace("length = 0.04", "length = -1.0"), "needle length"),
+        (with("").replace("direction = [1.0, 0.0, 0.0]", "direction = [0.0, 0.0, 0.0]"), "direction"),
+        (with("spacing = 0.0\n"), "needle.spacing"),
+        (with("thresholds = { puncture = 100.0, release = 95.0 }\n"), "needle.thresholds"),
+        (with("friction = { static_threshold = -1.0, dynamic = 0.2 }\n"), "needle.friction"),
+        (
+            with("[[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = -1.0\nduration = 1.0\n"),
+            "needle.keyframe[0]",
+        ),
+        (
+            with("[[needle.keyframe]]\naction = \"jump\"\nduration = 1.0\n"),
+            "jump",
+        ),
+    ];
+    for (text, key) in cases {
+        let r = Scene::from_toml_str(&text, Path::new("."))
+            .map_err(SimulationError::from)
+            .and_then(|s| Simulation::prepare(&s).map(|_| ()));
+        let msg = r.expect_err(key).to_string();
+        assert!(msg.contains(key), "`{key}` not in: {msg}");
+    }
+    // A needle longer than its node slots allow: a 4 cm needle with 2 cm spacing has
+    // 5 slots; pushing it 10 cm (the needle moves past its own length) runs out.
+    let text = with(
+        "spacing = 0.01\n[[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.1\nduration = 2.0\n",
+    )
+    .replace("[physics]\ndt = 1e-3", "[physics]\ndt = 1e-3\ndamping = 5.0");
+    let scene = Scene::from_toml_str(&text, Path::new(".")).unwrap();
+    let prep = Simulation::prepare(&scene).unwrap();
+    let b = needlesim::CpuBackend::new(prep.tissue.clone(), needlesim::Threading::Single).unwrap();
+    let mut sim = prep.start(Box::new(b)).unwrap();
+    let e = sim.step_n(2000).expect_err("capacity reached");
+    assert!(
+        matches!(e, SimulationError::Edit { .. }) && e.to_string().contains("capacity reached"),
+        "{e}"
+    );
+}

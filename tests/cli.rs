@@ -9,9 +9,9 @@ fn needlesim() -> Command {
 #[test]
 fn run_default_scene_writes_csv_and_paraview_frames() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("cube");
+    let out = dir.path().join("paper");
     let o = needlesim()
-        .args(["run", "--steps", "200", "--threads", "1", "--out"])
+        .args(["run", "--steps", "600", "--threads", "1", "--out"])
         .arg(&out)
         .output()
         .unwrap();
@@ -22,21 +22,34 @@ fn run_default_scene_writes_csv_and_paraview_frames() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(
-        stdout.contains("steps/s") && stdout.contains("nodes       648"),
+        stdout.contains("steps/s") && stdout.contains("needle      Inside"),
         "{stdout}"
     );
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], needlesim::output::CSV_HEADER);
-    // Default scene writes every 100 steps: frames at 0, 100, 200.
-    assert_eq!(lines.len(), 4, "{csv}");
-    let last: Vec<f64> = lines[3].split(',').map(|x| x.parse().unwrap()).collect();
-    assert_eq!(last[1], 200.0);
-    assert!(last[4] > 0.0, "the cube sags: max displacement {}", last[4]);
+    // The paper scene writes every 100 steps: frames at 0, 100, ..., 600.
+    assert_eq!(lines.len(), 8, "{csv}");
+    let last: Vec<f64> = lines[7].split(',').map(|x| x.parse().unwrap()).collect();
+    assert_eq!(last[1], 600.0);
+    assert!(
+        last[4] > 0.0,
+        "the needle dents the cube: max displacement {}",
+        last[4]
+    );
     let pvd = std::fs::read_to_string(out.join("surface.pvd")).unwrap();
-    assert_eq!(pvd.matches("<DataSet").count(), 3);
-    let vtp = std::fs::read_to_string(out.join("surface/surface_00002.vtp")).unwrap();
-    assert!(vtp.contains("NumberOfPolys=\"704\"") && vtp.contains("Name=\"displacement\""));
+    assert_eq!(pvd.matches("<DataSet").count(), 7);
+    // Needle force: one row per step, the PNG plots.
+    let force = std::fs::read_to_string(out.join("needle_force.csv")).unwrap();
+    assert_eq!(force.lines().count(), 601);
+    assert!(out.join("needle_force.png").exists() && out.join("needle_force_time.png").exists());
+    // Before contact the surface has the cube's 704 triangles; once the needle is in, the
+    // touched one is split in three and the needle nodes are vertex cells.
+    let first = std::fs::read_to_string(out.join("surface/surface_00000.vtp")).unwrap();
+    assert!(first.contains("NumberOfPolys=\"704\"") && first.contains("NumberOfVerts=\"0\""));
+    let vtp = std::fs::read_to_string(out.join("surface/surface_00006.vtp")).unwrap();
+    assert!(vtp.contains("NumberOfPolys=\"706\"") && vtp.contains("Name=\"displacement\""));
+    assert!(!vtp.contains("NumberOfVerts=\"0\""), "needle nodes written");
 }
 
 #[test]
@@ -105,7 +118,7 @@ fn every_shipped_scene_loads() {
             .unwrap();
     assert_eq!(
         default,
-        needlesim::Scene::from_file(dir.join("cube_sag_lshm.toml"))
+        needlesim::Scene::from_file(dir.join("paper_insertion_lshm.toml"))
             .map(|mut s| {
                 s.base_dir = ".".into();
                 s

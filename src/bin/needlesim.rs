@@ -143,8 +143,19 @@ fn run(cli: Cli) -> Result<()> {
                     m.time, m.kinetic_energy, m.max_displacement
                 );
             }
+            if let Some(h) = summary.needle.as_ref().and_then(|h| h.last()) {
+                println!(
+                    "needle      {:?}, {} needle nodes, force axial {:.4} N lateral {:.4} N",
+                    h.state, h.needle_nodes, h.force.axial, h.force.lateral
+                );
+            }
+            let needle_files = if summary.needle.is_some() {
+                ", needle_force.csv, needle_force.png"
+            } else {
+                ""
+            };
             println!(
-                "output      {} ({} files: frames.csv, surface.pvd for ParaView)",
+                "output      {} ({} files: frames.csv, surface.pvd for ParaView{needle_files})",
                 out.display(),
                 summary.files.len()
             );
