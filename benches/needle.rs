@@ -9,7 +9,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use needlesim::gpu::GpuBackend;
 use needlesim::needle::{NodeEditor, PunctureState, Simulation};
-use needlesim::{Backend, CpuBackend, Scene, Threading, Tissue};
+use needlesim::{CpuBackend, Scene, Threading, Tissue};
 use std::path::Path;
 
 mod common;
