@@ -210,9 +210,7 @@ fn built_neighbour_lists_are_mutual() {
 
 #[test]
 fn gravity_sag_settles_with_fixed_face_unmoved() {
-    let scene =
-        needlesim::Scene::from_toml_str(needlesim::DEFAULT_SCENE, std::path::Path::new("."))
-            .unwrap();
+    let scene = needlesim::Scene::from_file("scenes/cube_sag_lshm.toml").unwrap();
     let rest = rest_positions(&scene);
     let mut b = backend(&scene, Threading::Parallel);
     b.step(3000);

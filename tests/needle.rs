@@ -258,3 +258,30 @@ fn gpu_and_cpu_agree_on_the_paper_scene() {
     );
     assert!(straight < 1e-3 && windowed < 0.05, "{straight} {windowed}");
 }
+
+/// A needle jerked through the tissue (3 cm per step in, then out as fast): several nodes
+/// are added, and removed, within one step; the lists stay mutual and the arrays come back.
+#[test]
+fn fast_needle_adds_and_removes_several_nodes_per_step() {
+    let scene = scene_with_keyframes(
+        "[[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.5\nduration = 0.02\n\
+         [[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 30.0\nduration = 0.002\n\
+         [[needle.keyframe]]\naction = \"extract\"\nspeed = 30.0\nduration = 0.004\n",
+    );
+    let mut sim = cpu_sim(&scene);
+    let nb = sim.editor().neighbours().clone();
+    let shape = sim.editor().shape().clone();
+    let states = run_checked(&mut sim, 40);
+    assert_eq!(states.last(), Some(&PunctureState::Outside), "{states:?}");
+    assert!(states.contains(&PunctureState::Inside), "{states:?}");
+    let h = sim.history();
+    let jump_in = h
+        .windows(2)
+        .map(|w| w[1].needle_nodes as i64 - w[0].needle_nodes as i64);
+    let (most_in, most_out) = jump_in.fold((0, 0), |(a, b), d| (a.max(d), b.min(d)));
+    assert!(
+        most_in >= 2 && most_out <= -2,
+        "per-step changes {most_in} / {most_out}"
+    );
+    assert!(sim.editor().neighbours() == &nb && sim.editor().shape() == &shape);
+}
