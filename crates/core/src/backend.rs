@@ -62,12 +62,7 @@ pub trait Backend {
         nodes: &[u32],
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
-        if nodes.len() != out.len() {
-            return Err(SimError::BadRowLength {
-                k: 1,
-                len: out.len(),
-            });
-        }
+        check_gather(nodes, out)?;
         for (&i, o) in nodes.iter().zip(out.iter_mut()) {
             let i = i as usize;
             self.read(field, i..i + 1, std::slice::from_mut(o))?;
@@ -119,6 +114,18 @@ pub trait Backend {
 /// Index of the first vector with a NaN or infinite lane.
 pub fn first_non_finite(v: &[Vec4]) -> Option<usize> {
     v.iter().position(|p| !p.iter().all(|c| c.is_finite()))
+}
+
+/// Checks that a [`Backend::read_nodes`] output has one slot per node.
+pub fn check_gather(nodes: &[u32], out: &[Vec4]) -> Result<(), SimError> {
+    if nodes.len() == out.len() {
+        Ok(())
+    } else {
+        Err(SimError::BadRowLength {
+            k: 1,
+            len: out.len(),
+        })
+    }
 }
 
 /// Checks that `range` lies within `limit` nodes.

@@ -562,12 +562,7 @@ impl Backend for GpuBackend {
         nodes: &[u32],
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
-        if nodes.len() != out.len() {
-            return Err(SimError::BadRowLength {
-                k: 1,
-                len: out.len(),
-            });
-        }
+        needlesim_core::backend::check_gather(nodes, out)?;
         if nodes.len() > self.capacity {
             // The readback buffer holds `capacity` nodes: read in pieces.
             let c = self.capacity;
