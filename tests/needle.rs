@@ -285,3 +285,34 @@ fn fast_needle_adds_and_removes_several_nodes_per_step() {
     );
     assert!(sim.editor().neighbours() == &nb && sim.editor().shape() == &shape);
 }
+
+/// The caller can drive the needle instead of a script (a haptic device): setting the
+/// script's poses by hand every step gives the same run, bit for bit.
+#[test]
+fn set_pose_every_step_reproduces_the_script() {
+    let scene = Scene::from_toml_str(INSERT_EXTRACT, Path::new("scenes")).unwrap();
+    let cfg = needlesim::needle::NeedleConfig::from_table(scene.needle.as_ref().unwrap()).unwrap();
+    let script = cfg.script().unwrap().unwrap();
+    let mut scripted = cpu_sim(&scene);
+    let mut driven = cpu_sim(&scene);
+    let dt = driven.dt();
+    for _ in 0..1500 {
+        let pose = script.pose_at(driven.time() + dt);
+        driven.set_pose(pose.base(), pose.direction()).unwrap();
+        driven.step().unwrap();
+        scripted.step().unwrap();
+    }
+    let first = driven
+        .history()
+        .iter()
+        .zip(scripted.history())
+        .position(|(a, b)| a != b);
+    if let Some(i) = first {
+        panic!(
+            "step {i}: {:?}\n{:?}",
+            driven.history()[i],
+            scripted.history()[i]
+        );
+    }
+    assert_eq!(driven.state(), PunctureState::Inside);
+}

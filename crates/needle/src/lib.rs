@@ -1,12 +1,26 @@
 //! # needlesim-needle
 //!
-//! Needle insertion (paper section 5). Written so far: the rigid needle and its pose
-//! ([`needle`]), pose scripts of keyframes ([`script`]), and the segment-against-surface
-//! query with a grid broad phase that the Outside state needs ([`surface_query`]), and the
-//! surface side of the puncture state machine: states, the 1-to-3 triangle split and its
-//! exact reversal, the cone angle and its thresholds ([`puncture`]), and the stick-slip
-//! friction law ([`friction`]). Still to come (see the project's issues): node addition and
-//! exact removal, the state machine driving a backend, and the needle force.
+//! Needle insertion (paper section 5): the rigid needle and its pose ([`needle`]), pose
+//! scripts of keyframes ([`script`]), the scene's `[needle]` table ([`config`]), the
+//! segment-against-surface query with a grid broad phase ([`surface_query`]), the puncture
+//! states, the 1-to-3 triangle split and the cone angle ([`puncture`]), node addition and
+//! exact removal ([`node_editor`]), stick-slip friction ([`friction`]), and the
+//! [`Simulation`] that drives any [`needlesim_core::Backend`] through them and records the
+//! needle force of every step ([`simulation`]).
+//!
+//! ```no_run
+//! use needlesim_core::{CpuBackend, Scene, Threading};
+//! use needlesim_needle::Simulation;
+//! let scene = Scene::from_file("scenes/needle_insert_extract.toml")?;
+//! let prepared = Simulation::prepare(&scene)?;
+//! let backend = CpuBackend::new(prepared.tissue.clone(), Threading::Parallel)?;
+//! let mut sim = prepared.start(Box::new(backend))?;
+//! for _ in 0..3000 {
+//!     sim.step()?;
+//! }
+//! println!("{:?}: axial force {:.3} N", sim.state(), sim.needle_force().axial);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 #![warn(missing_docs)]
 

@@ -209,6 +209,7 @@ pub struct Simulation {
     backend: Box<dyn Backend>,
     editor: NodeEditor,
     needle: Option<Needle>,
+    /// The pose at the end of the last step.
     prev: Option<Needle>,
     script: Option<PoseScript>,
     friction: FrictionParams,
@@ -399,7 +400,7 @@ impl Simulation {
 
     /// Runs one step.
     pub fn step(&mut self) -> Result<(), SimulationError> {
-        let Some(prev) = self.needle else {
+        let (Some(prev), Some(_)) = (self.prev, self.needle) else {
             self.backend.step(1);
             self.time += self.dt;
             self.steps += 1;
@@ -408,8 +409,10 @@ impl Simulation {
         if let Some(s) = &self.script {
             self.needle = Some(s.pose_at(self.time + self.dt));
         }
+        // `prev` is the pose of the last step: the tip sweeps from there even when the
+        // caller moved the needle with `set_pose` in between.
         let now = self.needle.expect("needle present");
-        self.prev = Some(prev);
+        self.prev = Some(now);
         let step = self.steps;
         let edit = |source| SimulationError::Edit { step, source };
         self.contact(&prev, &now).map_err(edit)?;
