@@ -19,8 +19,9 @@ pub enum NodeField {
     Force,
 }
 
-/// Something that steps the tissue.
-pub trait Backend {
+/// Something that steps the tissue. `Send`, so that a simulation can run on another
+/// thread (the Python bindings step with the interpreter released).
+pub trait Backend: Send {
     /// Human-readable name (e.g. `cpu (1 thread)`).
     fn name(&self) -> String;
     /// Allocated node slots.

@@ -1,0 +1,92 @@
+"""Type stubs of the native module (see needlesim.Simulation)."""
+
+from os import PathLike
+from typing import Any, Dict, List, Literal, Optional, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+PunctureState = Literal["outside", "touching", "inside"]
+Backend = Literal["cpu", "cpu-parallel", "gpu", "auto"]
+
+class Simulation:
+    """A needle insertion simulation (or a plain tissue simulation when the scene has no
+    [needle] table) on the CPU or the GPU."""
+
+    @staticmethod
+    def from_scene(
+        path: Union[str, PathLike[str]],
+        backend: Optional[Backend] = None,
+        threads: Optional[int] = None,
+    ) -> "Simulation":
+        """Builds the scene in a TOML file. Raises ValueError naming the bad key."""
+    @staticmethod
+    def from_dict(
+        scene: Dict[str, Any],
+        backend: Optional[Backend] = None,
+        threads: Optional[int] = None,
+        base_dir: Optional[Union[str, PathLike[str]]] = None,
+    ) -> "Simulation":
+        """Builds a scene given as a dict with the TOML format's keys."""
+    def step(self, n: int = 1) -> None:
+        """Runs n steps with the interpreter lock released; RuntimeError on divergence."""
+    @property
+    def positions(self) -> npt.NDArray[np.float64]:
+        """(active_nodes, 3) positions in m (copy)."""
+    @property
+    def velocities(self) -> npt.NDArray[np.float64]:
+        """(active_nodes, 3) velocities in m/s (copy)."""
+    @property
+    def forces(self) -> npt.NDArray[np.float64]:
+        """(active_nodes, 3) forces of the last step in N (copy)."""
+    @property
+    def rest_positions(self) -> npt.NDArray[np.float64]:
+        """(active_nodes, 3) rest positions in m (copy)."""
+    @property
+    def triangles(self) -> npt.NDArray[np.int64]:
+        """(triangles, 3) surface triangles as indices into positions."""
+    def surface(self) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+        """The surface as (vertices (m, 3), faces (t, 3) into vertices)."""
+    def set_pose(self, base: Tuple[float, float, float], direction: Tuple[float, float, float]) -> None:
+        """Puts the needle at a pose for the next step; keyframes stop playing."""
+    @property
+    def tip(self) -> Optional[npt.NDArray[np.float64]]:
+        """Needle tip (3,), None without a needle."""
+    @property
+    def base(self) -> Optional[npt.NDArray[np.float64]]:
+        """Needle base point (3,), None without a needle."""
+    @property
+    def direction(self) -> Optional[npt.NDArray[np.float64]]:
+        """Unit needle direction base -> tip (3,), None without a needle."""
+    @property
+    def puncture_state(self) -> PunctureState: ...
+    @property
+    def needle_force(self) -> Dict[str, Any]:
+        """{"axial": float, "lateral": float, "total": (3,) array} in N of the last step."""
+    def history(self) -> Dict[str, Any]:
+        """Per-step arrays: step, time, depth, axial, lateral, active_nodes, needle_nodes;
+        state as a list of str."""
+    @property
+    def active_nodes(self) -> int: ...
+    @property
+    def capacity(self) -> int: ...
+    @property
+    def mesh_nodes(self) -> int: ...
+    @property
+    def needle_nodes(self) -> int: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def steps(self) -> int: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def backend(self) -> str:
+        """The backend in use, e.g. "cpu (1 thread)" or "gpu (<adapter>)"."""
+    @property
+    def warnings(self) -> List[str]: ...
+
+def adapter() -> Optional[str]:
+    """The GPU adapter wgpu finds, or None."""

@@ -1,0 +1,432 @@
+//! Python bindings of needlesim: `needlesim.Simulation` steps a scene (TOML file or a
+//! dict with the same keys) on the CPU or the GPU and hands out numpy arrays.
+//!
+//! Arrays are copies (float64 for positions and forces, converted exactly from the f32
+//! state), so they stay valid after further steps. `step(n)` releases the interpreter
+//! lock while it runs. Errors from Rust become `ValueError` (bad scene, bad argument) or
+//! `RuntimeError` (divergence, device failure, needle capacity), with the Rust message.
+
+use needlesim::core::scene::BackendChoice;
+use needlesim::needle::{PunctureState, Simulation, SimulationError};
+use needlesim::{make_backend, NodeField, RunError, Scene, SimError};
+use numpy::{PyArray1, PyArray2, PyArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
+
+fn value_error(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+fn runtime_error(e: impl std::fmt::Display) -> PyErr {
+    PyRuntimeError::new_err(e.to_string())
+}
+
+/// Bad input is a `ValueError`; everything that fails while running a `RuntimeError`.
+fn run_error(e: RunError) -> PyErr {
+    match e {
+        RunError::Scene(_) | RunError::Threads(_) => value_error(e),
+        RunError::Needle(SimulationError::Scene(_) | SimulationError::Needle(_)) => value_error(e),
+        _ => runtime_error(e),
+    }
+}
+
+fn sim_error(e: SimulationError) -> PyErr {
+    match e {
+        SimulationError::Scene(_) | SimulationError::Needle(_) | SimulationError::NoNeedle => {
+            value_error(e)
+        }
+        _ => runtime_error(e),
+    }
+}
+
+fn state_name(s: PunctureState) -> &'static str {
+    match s {
+        PunctureState::Outside => "outside",
+        PunctureState::Touching => "touching",
+        PunctureState::Inside => "inside",
+    }
+}
+
+/// A Python value as TOML, naming the dotted key of anything that has no TOML form.
+fn to_toml(obj: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
+    if obj.is_instance_of::<PyBool>() {
+        return Ok(toml::Value::Boolean(obj.extract()?));
+    }
+    if obj.is_instance_of::<PyInt>() {
+        return Ok(toml::Value::Integer(obj.extract()?));
+    }
+    if obj.is_instance_of::<PyFloat>() {
+        return Ok(toml::Value::Float(obj.extract()?));
+    }
+    if obj.is_instance_of::<PyString>() {
+        return Ok(toml::Value::String(obj.extract()?));
+    }
+    if let Ok(d) = obj.cast::<PyDict>() {
+        let mut t = toml::Table::new();
+        for (k, v) in d.iter() {
+            let k: String = k
+                .extract()
+                .map_err(|_| value_error(format!("scene key `{key}`: keys must be strings")))?;
+            let sub = if key.is_empty() {
+                k.clone()
+            } else {
+                format!("{key}.{k}")
+            };
+            t.insert(k, to_toml(&v, &sub)?);
+        }
+        return Ok(toml::Value::Table(t));
+    }
+    if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        let mut out = Vec::new();
+        for (i, v) in obj.try_iter()?.enumerate() {
+            out.push(to_toml(&v?, &format!("{key}[{i}]"))?);
+        }
+        return Ok(toml::Value::Array(out));
+    }
+    // numpy scalars and anything else float-like.
+    if let Ok(f) = obj.extract::<f64>() {
+        return Ok(toml::Value::Float(f));
+    }
+    Err(value_error(format!(
+        "scene key `{key}`: cannot use a value of type {}",
+        obj.get_type().name()?
+    )))
+}
+
+fn backend_choice(name: Option<&str>) -> PyResult<Option<BackendChoice>> {
+    name.map(|n| {
+        toml::Value::String(n.to_string())
+            .try_into::<BackendChoice>()
+            .map_err(|_| {
+                value_error(format!(
+                    "unknown backend `{n}`: use \"cpu\", \"cpu-parallel\", \"gpu\" or \"auto\""
+                ))
+            })
+    })
+    .transpose()
+}
+
+/// A needle insertion simulation (or a plain tissue simulation when the scene has no
+/// `[needle]` table) on the CPU or the GPU.
+#[pyclass(module = "needlesim._needlesim", name = "Simulation")]
+struct PySimulation {
+    sim: Mutex<Simulation>,
+    warnings: Vec<String>,
+}
+
+impl PySimulation {
+    fn build(scene: &Scene, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+        let choice = backend_choice(backend)?;
+        let prep = Simulation::prepare(scene).map_err(sim_error)?;
+        let (b, warning) =
+            make_backend(scene, prep.tissue.clone(), choice, threads).map_err(run_error)?;
+        let sim = prep.start(b).map_err(sim_error)?;
+        Ok(PySimulation {
+            sim: Mutex::new(sim),
+            warnings: warning.into_iter().collect(),
+        })
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Simulation> {
+        // A panic while stepping poisons the lock; the state is still readable.
+        self.sim.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn field<'py>(&self, py: Python<'py>, field: NodeField) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let mut sim = self.lock();
+        let b = sim.backend();
+        let n = b.n_active();
+        let mut buf = vec![[0.0f32; 4]; n];
+        b.read(field, 0..n, &mut buf).map_err(runtime_error)?;
+        let flat: Vec<f64> = buf
+            .iter()
+            .flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+            .collect();
+        rows(py, flat, 3)
+    }
+}
+
+/// Vertices (m, 3) and faces (t, 3).
+type Mesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
+
+fn rows<'py, T: numpy::Element>(
+    py: Python<'py>,
+    flat: Vec<T>,
+    cols: usize,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let n = flat.len() / cols;
+    PyArray1::from_vec(py, flat).reshape([n, cols])
+}
+
+#[pymethods]
+impl PySimulation {
+    /// Builds the scene in the TOML file `path`. `backend`: "cpu" (one thread),
+    /// "cpu-parallel", "gpu" or "auto" (default: the scene's); `threads`: CPU threads
+    /// (0 = all; implies a CPU backend).
+    #[staticmethod]
+    #[pyo3(signature = (path, backend=None, threads=None))]
+    fn from_scene(path: PathBuf, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+        let scene = Scene::from_file(&path).map_err(value_error)?;
+        Self::build(&scene, backend, threads)
+    }
+
+    /// Builds a scene given as a dict with the keys of the TOML format (nested dicts for
+    /// tables, lists for arrays and arrays of tables). Relative paths resolve against
+    /// `base_dir` (default: the current directory).
+    #[staticmethod]
+    #[pyo3(signature = (scene, backend=None, threads=None, base_dir=None))]
+    fn from_dict(
+        scene: &Bound<'_, PyDict>,
+        backend: Option<&str>,
+        threads: Option<usize>,
+        base_dir: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let table = to_toml(scene.as_any(), "")?;
+        let text = toml::to_string(&table).map_err(value_error)?;
+        let base = base_dir.unwrap_or_else(|| PathBuf::from("."));
+        let scene = Scene::from_toml_str(&text, Path::new(&base)).map_err(value_error)?;
+        Self::build(&scene, backend, threads)
+    }
+
+    /// Runs `n` steps with the interpreter lock released, then checks that every position
+    /// and velocity is finite (RuntimeError naming the step and node otherwise).
+    #[pyo3(signature = (n=1))]
+    fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
+        let sim = &self.sim;
+        py.detach(|| {
+            let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());
+            s.step_n(n).map_err(|e| e.to_string())?;
+            s.backend()
+                .check_finite()
+                .map_err(|e: SimError| e.to_string())
+        })
+        .map_err(PyRuntimeError::new_err)
+    }
+
+    /// Positions of the active nodes, shape (active_nodes, 3), float64 copy, metres.
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.field(py, NodeField::Position)
+    }
+
+    /// Velocities, shape (active_nodes, 3), float64 copy, m/s.
+    #[getter]
+    fn velocities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.field(py, NodeField::Velocity)
+    }
+
+    /// Elastic forces of the last step (with friction on sliding needle nodes), shape
+    /// (active_nodes, 3), float64 copy, newtons.
+    #[getter]
+    fn forces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        self.field(py, NodeField::Force)
+    }
+
+    /// Rest positions (mesh nodes, then needle nodes), shape (active_nodes, 3), float64.
+    #[getter]
+    fn rest_positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let flat: Vec<f64> = self.lock().rest_positions().into_iter().flatten().collect();
+        rows(py, flat, 3)
+    }
+
+    /// Surface triangles as node indices into `positions`, shape (triangles, 3), int64.
+    #[getter]
+    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
+        let flat: Vec<i64> = self
+            .lock()
+            .triangles()
+            .iter()
+            .flatten()
+            .map(|&v| v as i64)
+            .collect();
+        rows(py, flat, 3)
+    }
+
+    /// The surface as its own mesh: (vertices (m, 3) float64, faces (t, 3) int64 into
+    /// the vertices).
+    fn surface<'py>(&self, py: Python<'py>) -> PyResult<Mesh<'py>> {
+        let pos = self.field(py, NodeField::Position)?;
+        let pos = pos.readonly();
+        let pos = pos.as_array();
+        let tris = self.lock().triangles().to_vec();
+        let mut map = std::collections::HashMap::new();
+        let mut verts = Vec::new();
+        let mut faces = Vec::with_capacity(tris.len() * 3);
+        for t in &tris {
+            for &v in t {
+                let id = *map.entry(v).or_insert_with(|| {
+                    let r = pos.row(v as usize);
+                    verts.extend([r[0], r[1], r[2]]);
+                    verts.len() / 3 - 1
+                });
+                faces.push(id as i64);
+            }
+        }
+        Ok((rows(py, verts, 3)?, rows(py, faces, 3)?))
+    }
+
+    /// Puts the needle at a pose for the next step (base point and direction base ->
+    /// tip); the scene's keyframes, if any, stop playing.
+    fn set_pose(&self, base: [f64; 3], direction: [f64; 3]) -> PyResult<()> {
+        self.lock().set_pose(base, direction).map_err(sim_error)
+    }
+
+    /// Needle tip, shape (3,), or None without a needle.
+    #[getter]
+    fn tip<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        let tip = self.lock().needle().map(|n| n.tip());
+        tip.map(|t| PyArray1::from_vec(py, t.to_vec()))
+    }
+
+    /// Needle base point, shape (3,), or None without a needle.
+    #[getter]
+    fn base<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        let b = self.lock().needle().map(|n| n.base());
+        b.map(|t| PyArray1::from_vec(py, t.to_vec()))
+    }
+
+    /// Needle direction (unit, base -> tip), shape (3,), or None without a needle.
+    #[getter]
+    fn direction<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        let d = self.lock().needle().map(|n| n.direction());
+        d.map(|t| PyArray1::from_vec(py, t.to_vec()))
+    }
+
+    /// "outside", "touching" or "inside".
+    #[getter]
+    fn puncture_state(&self) -> &'static str {
+        state_name(self.lock().state())
+    }
+
+    /// Force of the tissue on the needle in the last step: {"axial": N (positive resists
+    /// insertion), "lateral": N, "total": array (3,)}.
+    #[getter]
+    fn needle_force<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.lock().needle_force();
+        let d = PyDict::new(py);
+        d.set_item("axial", f.axial)?;
+        d.set_item("lateral", f.lateral)?;
+        d.set_item("total", PyArray1::from_vec(py, f.total.to_vec()))?;
+        Ok(d)
+    }
+
+    /// Every step's needle record as numpy arrays: step, time, depth (m past the first
+    /// contact), axial, lateral (N), active_nodes, needle_nodes, and state (list of str).
+    fn history<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let sim = self.lock();
+        let h = sim.history();
+        let d = PyDict::new(py);
+        let col = |f: &dyn Fn(&needlesim::needle::NeedleSample) -> f64| -> Vec<f64> {
+            h.iter().map(f).collect()
+        };
+        d.set_item(
+            "step",
+            PyArray1::from_vec(py, h.iter().map(|s| s.step as i64).collect()),
+        )?;
+        d.set_item("time", PyArray1::from_vec(py, col(&|s| s.time)))?;
+        d.set_item(
+            "depth",
+            PyArray1::from_vec(py, col(&|s| sim.depth_of(s.tip, s.direction))),
+        )?;
+        d.set_item("axial", PyArray1::from_vec(py, col(&|s| s.force.axial)))?;
+        d.set_item("lateral", PyArray1::from_vec(py, col(&|s| s.force.lateral)))?;
+        let ints = |f: &dyn Fn(&needlesim::needle::NeedleSample) -> usize| -> Vec<i64> {
+            h.iter().map(|s| f(s) as i64).collect()
+        };
+        d.set_item(
+            "active_nodes",
+            PyArray1::from_vec(py, ints(&|s| s.active_nodes)),
+        )?;
+        d.set_item(
+            "needle_nodes",
+            PyArray1::from_vec(py, ints(&|s| s.needle_nodes)),
+        )?;
+        let states: Vec<&str> = h.iter().map(|s| state_name(s.state)).collect();
+        d.set_item("state", states)?;
+        Ok(d)
+    }
+
+    /// Nodes simulated now (mesh nodes plus needle nodes).
+    #[getter]
+    fn active_nodes(&self) -> usize {
+        self.lock().editor().n_active()
+    }
+
+    /// Allocated node slots (mesh nodes plus the needle's capacity).
+    #[getter]
+    fn capacity(&self) -> usize {
+        self.lock().editor().capacity()
+    }
+
+    /// Nodes of the tissue mesh.
+    #[getter]
+    fn mesh_nodes(&self) -> usize {
+        self.lock().editor().n_mesh()
+    }
+
+    /// Needle nodes now (Surface, Shaft and Tip nodes).
+    #[getter]
+    fn needle_nodes(&self) -> usize {
+        self.lock().needle_nodes().len()
+    }
+
+    /// Simulated time in s.
+    #[getter]
+    fn time(&self) -> f64 {
+        self.lock().time()
+    }
+
+    /// Steps taken.
+    #[getter]
+    fn steps(&self) -> u64 {
+        self.lock().steps()
+    }
+
+    /// Time step in s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.lock().dt()
+    }
+
+    /// The backend in use, e.g. "cpu (1 thread)" or "gpu (<adapter>)".
+    #[getter]
+    fn backend(&self) -> String {
+        self.lock().backend().name()
+    }
+
+    /// Warnings from building (for example the CPU fallback of backend "auto").
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        let mut s = self.lock();
+        format!(
+            "Simulation(backend={:?}, active_nodes={}, steps={}, state={:?})",
+            s.backend().name(),
+            s.editor().n_active(),
+            s.steps(),
+            state_name(s.state())
+        )
+    }
+}
+
+/// The GPU adapter wgpu finds, described in one line, or None without one.
+#[pyfunction]
+fn adapter() -> Option<String> {
+    needlesim::gpu::GpuContext::new(0)
+        .ok()
+        .map(|c| c.describe())
+}
+
+#[pymodule]
+fn _needlesim(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySimulation>()?;
+    m.add_function(wrap_pyfunction!(adapter, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,162 @@
+"""The Python bindings, as a researcher uses them."""
+
+import os
+import threading
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import needlesim
+
+ROOT = Path(__file__).resolve().parents[3]
+INSERT_EXTRACT = ROOT / "scenes" / "needle_insert_extract.toml"
+SAG = ROOT / "scenes" / "cube_sag_msm.toml"
+
+
+def test_stepping_changes_positions():
+    sim = needlesim.Simulation.from_scene(SAG, threads=1)
+    before = sim.positions
+    sim.step(50)
+    after = sim.positions
+    assert sim.steps == 50 and abs(sim.time - 50 * sim.dt) < 1e-9
+    moved = np.linalg.norm(after - before, axis=1)
+    # The free end sags under gravity: 50 ms of free fall is about 1 cm at most.
+    assert 1e-5 < moved.max() < 2e-2
+    # The copy taken before stepping did not change.
+    assert not np.array_equal(before, after)
+
+
+def test_dict_and_toml_scenes_give_identical_results():
+    with open(INSERT_EXTRACT, "rb") as f:
+        scene = tomllib.load(f)
+    a = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
+    b = needlesim.Simulation.from_dict(scene, threads=1, base_dir=INSERT_EXTRACT.parent)
+    a.step(600)
+    b.step(600)
+    assert np.array_equal(a.positions, b.positions)
+    assert a.puncture_state == b.puncture_state == "inside"
+    fa, fb = a.needle_force, b.needle_force
+    assert fa["axial"] == fb["axial"] and np.array_equal(fa["total"], fb["total"])
+
+
+def test_bad_scenes_raise_value_error_naming_the_key():
+    with open(SAG, "rb") as f:
+        scene = tomllib.load(f)
+    scene["material"]["stiffness"] = -1.0
+    with pytest.raises(ValueError, match="material.stiffness"):
+        needlesim.Simulation.from_dict(scene)
+    scene["material"]["stiffness"] = 100.0
+    scene["physics"]["stepsize"] = 1.0
+    with pytest.raises(ValueError, match="stepsize"):
+        needlesim.Simulation.from_dict(scene)
+    del scene["physics"]["stepsize"]
+    scene["needle"] = {"base": [0, 0, 0], "direction": [0, 0, 0], "length": 0.1}
+    with pytest.raises(ValueError, match="direction"):
+        needlesim.Simulation.from_dict(scene)
+    with pytest.raises(ValueError, match="banana"):
+        needlesim.Simulation.from_scene(SAG, backend="banana")
+    with pytest.raises(ValueError, match="cannot read scene file"):
+        needlesim.Simulation.from_scene(ROOT / "no" / "such.toml")
+    with pytest.raises(ValueError, match="object"):
+        needlesim.Simulation.from_dict({"tissue": {"density": object()}})
+
+
+def test_divergence_raises_runtime_error():
+    with open(SAG, "rb") as f:
+        scene = tomllib.load(f)
+    # A stiffness a million times too large for the time step.
+    scene["material"]["stiffness"] = 1e8
+    sim = needlesim.Simulation.from_dict(scene, threads=1)
+    with pytest.raises(RuntimeError, match="diverged"):
+        sim.step(2000)
+
+
+def test_insert_extract_goes_outside_touching_inside_outside():
+    sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
+    seen = [sim.puncture_state]
+    for _ in range(500):
+        sim.step(10)
+        if sim.puncture_state != seen[-1]:
+            seen.append(sim.puncture_state)
+    assert seen == ["outside", "touching", "inside", "outside"]
+    h = sim.history()
+    assert len(h["time"]) == 5000
+    assert h["needle_nodes"].max() >= 4 and sim.needle_nodes == 0
+    assert sim.active_nodes == sim.mesh_nodes < sim.capacity
+
+
+def test_shapes_and_dtypes_are_as_documented():
+    sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
+    sim.step(700)  # inside: needle nodes exist
+    n = sim.active_nodes
+    assert n > sim.mesh_nodes
+    for name in ["positions", "velocities", "forces", "rest_positions"]:
+        a = getattr(sim, name)
+        assert a.shape == (n, 3) and a.dtype == np.float64, name
+    t = sim.triangles
+    assert t.dtype == np.int64 and t.shape[1] == 3 and t.max() < n
+    v, f = sim.surface()
+    assert v.dtype == np.float64 and v.shape[1] == 3
+    assert f.dtype == np.int64 and f.shape == t.shape and f.max() == len(v) - 1
+    assert sim.tip.shape == (3,) and sim.direction.shape == (3,) and sim.base.shape == (3,)
+    assert np.allclose(sim.base + 0.1 * sim.direction, sim.tip)
+    force = sim.needle_force
+    assert set(force) == {"axial", "lateral", "total"} and force["total"].shape == (3,)
+    h = sim.history()
+    assert h["depth"].dtype == np.float64 and h["step"].dtype == np.int64
+    assert len(h["state"]) == 700 and h["state"][-1] == "inside"
+    assert sim.backend.startswith("cpu")
+
+
+def test_set_pose_drives_the_needle():
+    sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
+    base, d = sim.base, sim.direction
+    for k in range(1, 700):
+        sim.set_pose(base + 2.5e-5 * k * d, d)
+        sim.step()
+    assert sim.puncture_state == "inside"
+    with pytest.raises(ValueError):
+        sim.set_pose([0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+
+
+def test_step_releases_the_interpreter_lock():
+    sim = needlesim.Simulation.from_scene(SAG, threads=1)
+    count = 0
+    stop = threading.Event()
+
+    def spin():
+        nonlocal count
+        while not stop.is_set():
+            count += 1
+
+    t = threading.Thread(target=spin)
+    t.start()
+    time.sleep(0.05)
+    start = count
+    t0 = time.perf_counter()
+    sim.step(3000)
+    elapsed = time.perf_counter() - t0
+    during = count - start
+    stop.set()
+    t.join()
+    # With the lock held, the other thread cannot run Python code until the call returns
+    # (and this thread reads `count` first): it would count about 0. Released, it counts
+    # all along (millions per second).
+    assert during > 10_000, f"the other thread counted {during} times in {elapsed:.3f} s"
+
+
+@pytest.mark.skipif(
+    needlesim.adapter() is None and not os.environ.get("NEEDLESIM_REQUIRE_GPU"),
+    reason="no GPU adapter",
+)
+def test_gpu_backend_matches_the_cpu():
+    a = needlesim.Simulation.from_scene(INSERT_EXTRACT, backend="gpu")
+    b = needlesim.Simulation.from_scene(INSERT_EXTRACT, backend="cpu")
+    assert a.backend.startswith("gpu")
+    a.step(700)
+    b.step(700)
+    assert a.puncture_state == b.puncture_state
+    assert np.abs(a.positions - b.positions).max() < 1e-5
