@@ -34,10 +34,21 @@ pub enum RunError {
     Threads(#[from] needlesim_core::cpu::ThreadPoolError),
     /// The needle simulation failed (bad `[needle]` table, capacity reached, ...).
     #[error(transparent)]
-    Needle(#[from] SimulationError),
+    Needle(SimulationError),
     /// The GPU backend was asked for and cannot run.
     #[error(transparent)]
     Gpu(#[from] needlesim_gpu::GpuError),
+}
+
+impl From<SimulationError> for RunError {
+    /// Scene and divergence errors keep their own variants.
+    fn from(e: SimulationError) -> Self {
+        match e {
+            SimulationError::Scene(s) => RunError::Scene(s),
+            SimulationError::Sim(s) => RunError::Sim(s),
+            other => RunError::Needle(other),
+        }
+    }
 }
 
 /// Options of a run that are not part of the scene.
@@ -197,10 +208,7 @@ pub fn run_scene(
     mut progress: impl FnMut(u64, u64),
 ) -> Result<RunSummary, RunError> {
     let start = Instant::now();
-    let prep = Simulation::prepare(scene).map_err(|e| match e {
-        SimulationError::Scene(s) => RunError::Scene(s),
-        other => RunError::Needle(other),
-    })?;
+    let prep = Simulation::prepare(scene)?;
     let dt = prep.tissue.step.dt as f64;
     let (backend, warning) =
         make_backend(scene, prep.tissue.clone(), options.backend, options.threads)?;
@@ -237,16 +245,7 @@ pub fn run_scene(
         backend.read(NodeField::Position, 0..n, &mut pos)?;
         backend.read(NodeField::Velocity, 0..n, &mut vel)?;
         backend.read(NodeField::Force, 0..n, &mut force)?;
-        for (buf, field) in [(&pos, "position"), (&vel, "velocity")] {
-            if let Some(node) = needlesim_core::backend::first_non_finite(buf) {
-                return Err(SimError::Diverged {
-                    step: done,
-                    node,
-                    field,
-                }
-                .into());
-            }
-        }
+        sim.check()?;
         let rest = sim.rest_positions();
         let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
         if let Some(w) = csv.as_mut() {

@@ -49,6 +49,14 @@ fn bad_scenes_name_the_key() {
         ),
         (GOOD.replace("dt = 1e-3", "dt = 0.0"), "physics.dt"),
         (
+            GOOD.replace("dt = 1e-3", "dt = 1e-3\nmax_speed = -1.0"),
+            "physics.max_speed",
+        ),
+        (
+            GOOD.replace("dt = 1e-3", "dt = 1e-3\ncheck_every = 0"),
+            "physics.check_every",
+        ),
+        (
             GOOD.replace(
                 "model = \"mass_spring\"\nstiffness = 100.0",
                 "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.5",

@@ -112,6 +112,39 @@ pub trait Backend: Send {
     }
 }
 
+/// Checks positions and velocities of the active nodes: an error names the first
+/// non-finite value, or the fastest free node (inverse mass > 0) when it is faster than
+/// `max_speed` m/s.
+pub fn check_bounded(backend: &mut dyn Backend, max_speed: f64) -> Result<(), SimError> {
+    let n = backend.n_active();
+    let step = backend.steps_taken();
+    let mut p = vec![[0.0f32; 4]; n];
+    let mut v = vec![[0.0f32; 4]; n];
+    backend.read(NodeField::Position, 0..n, &mut p)?;
+    backend.read(NodeField::Velocity, 0..n, &mut v)?;
+    for (buf, field) in [(&p, "position"), (&v, "velocity")] {
+        if let Some(node) = first_non_finite(buf) {
+            return Err(SimError::Diverged { step, node, field });
+        }
+    }
+    let fastest = (0..n)
+        .filter(|&i| p[i][3] > 0.0)
+        .map(|i| {
+            let s = (0..3).map(|a| (v[i][a] as f64).powi(2)).sum::<f64>().sqrt();
+            (s, i)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0));
+    match fastest {
+        Some((speed, node)) if speed > max_speed => Err(SimError::Runaway {
+            step,
+            node,
+            speed,
+            limit: max_speed,
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// Index of the first vector with a NaN or infinite lane.
 pub fn first_non_finite(v: &[Vec4]) -> Option<usize> {
     v.iter().position(|p| !p.iter().all(|c| c.is_finite()))

@@ -133,6 +133,22 @@ pub enum SimError {
         /// `position` or `velocity`.
         field: &'static str,
     },
+    /// A free node moves faster than the scene's `physics.max_speed`: the explicit step is
+    /// unstable (time step too large for the stiffness) and about to overflow.
+    #[error(
+        "simulation diverged at step {step}: node {node} moves at {speed:.3e} m/s, above \
+         physics.max_speed = {limit} m/s (reduce physics.dt or the stiffness)"
+    )]
+    Runaway {
+        /// Step counter when it was detected.
+        step: u64,
+        /// The fastest free node.
+        node: usize,
+        /// Its speed in m/s.
+        speed: f64,
+        /// The bound.
+        limit: f64,
+    },
     /// A node range outside the active or allocated nodes.
     #[error("node range {start}..{end} is outside the {limit} {what} nodes")]
     OutOfRange {

@@ -330,10 +330,26 @@ pub struct Physics {
     /// Mass-proportional velocity damping c in 1/s: `v <- (v + dt a) / (1 + dt c)`.
     #[serde(default)]
     pub damping: f64,
+    /// Divergence guard: a free node faster than this (m/s), or any non-finite position or
+    /// velocity, stops the run with an error naming the step and the node. An unstable
+    /// explicit step grows geometrically, so the bound is crossed within a few steps of
+    /// the instability becoming visible; tissue speeds are far below the default 100 m/s.
+    #[serde(default = "default_max_speed")]
+    pub max_speed: f64,
+    /// Steps between two divergence checks of a needle simulation (each reads every
+    /// node back from the GPU); runs also check at every output frame.
+    #[serde(default = "default_check_every")]
+    pub check_every: u64,
 }
 
 fn default_dt() -> f64 {
     1e-3
+}
+fn default_max_speed() -> f64 {
+    100.0
+}
+fn default_check_every() -> u64 {
+    100
 }
 
 impl Default for Physics {
@@ -342,6 +358,8 @@ impl Default for Physics {
             dt: default_dt(),
             gravity: [0.0; 3],
             damping: 0.0,
+            max_speed: default_max_speed(),
+            check_every: default_check_every(),
         }
     }
 }
@@ -669,6 +687,13 @@ impl Scene {
             finite("physics.gravity", g)?;
         }
         non_negative_finite("physics.damping", p.damping)?;
+        positive_finite("physics.max_speed", p.max_speed)?;
+        if p.check_every == 0 {
+            return Err(SceneError::invalid(
+                "physics.check_every",
+                "must be at least 1",
+            ));
+        }
         for (i, f) in self.fixed.iter().enumerate() {
             let key = format!("fixed[{i}]");
             match (f.below, f.above) {

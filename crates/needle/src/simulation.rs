@@ -144,6 +144,7 @@ pub struct Prepared {
     config: Option<NeedleConfig>,
     spacing: f64,
     rest: Vec<[f64; 3]>,
+    guard: (f64, u64),
 }
 
 impl Prepared {
@@ -199,6 +200,8 @@ impl Prepared {
             history: Vec::new(),
             record: true,
             rest: self.rest,
+            max_speed: self.guard.0,
+            check_every: self.guard.1,
         })
     }
 }
@@ -231,6 +234,8 @@ pub struct Simulation {
     history: Vec<NeedleSample>,
     record: bool,
     rest: Vec<[f64; 3]>,
+    max_speed: f64,
+    check_every: u64,
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -275,6 +280,7 @@ impl Simulation {
             config,
             spacing,
             rest,
+            guard: (scene.physics.max_speed, scene.physics.check_every),
         })
     }
 
@@ -384,12 +390,21 @@ impl Simulation {
         self.nodes.iter().map(|n| n.index).collect()
     }
 
-    /// Runs `n` steps (without a needle, in one batch: the GPU backend queues them all).
+    /// Runs `n` steps (without a needle, in batches between divergence checks: the GPU
+    /// backend queues each batch without waiting).
     pub fn step_n(&mut self, n: u64) -> Result<(), SimulationError> {
         if self.needle.is_none() {
-            self.backend.step(n);
-            self.time += n as f64 * self.dt;
-            self.steps += n;
+            let mut left = n;
+            while left > 0 {
+                let batch = left.min(self.check_every - self.steps % self.check_every);
+                self.backend.step(batch);
+                self.time += batch as f64 * self.dt;
+                self.steps += batch;
+                left -= batch;
+                if self.steps.is_multiple_of(self.check_every) {
+                    self.check()?;
+                }
+            }
             return Ok(());
         }
         for _ in 0..n {
@@ -398,13 +413,18 @@ impl Simulation {
         Ok(())
     }
 
+    /// The divergence guard: an error naming the step and node if a position or velocity
+    /// is not finite or a free node is faster than `physics.max_speed`. Run every
+    /// `physics.check_every` steps by [`Simulation::step`] and [`Simulation::step_n`].
+    pub fn check(&mut self) -> Result<(), SimulationError> {
+        needlesim_core::backend::check_bounded(self.backend.as_mut(), self.max_speed)?;
+        Ok(())
+    }
+
     /// Runs one step.
     pub fn step(&mut self) -> Result<(), SimulationError> {
         let (Some(prev), Some(_)) = (self.prev, self.needle) else {
-            self.backend.step(1);
-            self.time += self.dt;
-            self.steps += 1;
-            return Ok(());
+            return self.step_n(1);
         };
         if let Some(s) = &self.script {
             self.needle = Some(s.pose_at(self.time + self.dt));
@@ -422,6 +442,9 @@ impl Simulation {
         self.backend.integrate();
         self.time += self.dt;
         self.steps += 1;
+        if self.steps.is_multiple_of(self.check_every) {
+            self.check()?;
+        }
         if self.record {
             self.history.push(NeedleSample {
                 step: self.steps,

@@ -8,7 +8,7 @@
 
 use needlesim::core::scene::BackendChoice;
 use needlesim::needle::{PunctureState, Simulation, SimulationError};
-use needlesim::{make_backend, NodeField, RunError, Scene, SimError};
+use needlesim::{make_backend, NodeField, RunError, Scene};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -191,17 +191,16 @@ impl PySimulation {
         Self::build(&scene, backend, threads)
     }
 
-    /// Runs `n` steps with the interpreter lock released, then checks that every position
-    /// and velocity is finite (RuntimeError naming the step and node otherwise).
+    /// Runs `n` steps with the interpreter lock released. Every `physics.check_every`
+    /// steps and at the end, every position and velocity must be finite and every free
+    /// node slower than `physics.max_speed` (RuntimeError naming the step and node).
     #[pyo3(signature = (n=1))]
     fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
         let sim = &self.sim;
         py.detach(|| {
             let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());
             s.step_n(n).map_err(|e| e.to_string())?;
-            s.backend()
-                .check_finite()
-                .map_err(|e: SimError| e.to_string())
+            s.check().map_err(|e| e.to_string())
         })
         .map_err(PyRuntimeError::new_err)
     }
