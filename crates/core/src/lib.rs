@@ -27,6 +27,7 @@ pub mod math;
 pub mod models;
 pub mod neighbours;
 pub mod scene;
+pub mod stability;
 pub mod state;
 pub mod tissue;
 
