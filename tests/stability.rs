@@ -20,13 +20,11 @@ fn cube(material: &str, dt: f64, damping: f64) -> CpuBackend {
     let mut b = CpuBackend::new(Tissue::from_scene(&scene).unwrap(), Threading::Single).unwrap();
     let mut p = read(&mut b, needlesim::NodeField::Position);
     let mut s = 11u64;
-    for q in p.iter_mut() {
-        for a in 0..3 {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            q[a] += 1e-4 * ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) as f32;
-        }
+    for c in p.iter_mut().flat_map(|q| q[..3].iter_mut()) {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        *c += 1e-4 * ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) as f32;
     }
     b.write(needlesim::NodeField::Position, 0, &p).unwrap();
     b
