@@ -48,6 +48,7 @@ fn bad_scenes_name_the_key() {
             "stiffness",
         ),
         (GOOD.replace("dt = 1e-3", "dt = 0.0"), "physics.dt"),
+        (GOOD.replace("dt = 1e-3", "dt = \"fast\""), "physics.dt"),
         (
             GOOD.replace("dt = 1e-3", "dt = 1e-3\nmax_speed = -1.0"),
             "physics.max_speed",

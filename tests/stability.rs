@@ -84,3 +84,52 @@ fn bisect_all() {
         );
     }
 }
+
+/// `dt = "auto"` keeps every model stable at 1000 times its default stiffness, released
+/// from a 20% stretch, where the default 1 ms step runs away.
+#[test]
+fn auto_dt_is_stable_on_stiff_scenes() {
+    let stiff = [
+        ("msm", "model = \"mass_spring\"\nstiffness = 1e5", 0.0),
+        // The paper's node forces gain energy at a rate growing like sqrt(k); they need
+        // damping at any step (20/s at the default stiffness, times sqrt(1000)).
+        ("lshm-node", "model = \"local_shape_matching\"\nstiffness = 2e4\nforces = \"node\"", 630.0),
+        ("lshm-cluster", "model = \"local_shape_matching\"\nstiffness = 2e4\nforces = \"cluster\"", 0.0),
+        ("deb", "model = \"debunne_meshfree\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3", 0.0),
+        ("deb-corotated", "model = \"debunne_meshfree\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3\ncorotated = true", 0.0),
+        ("pba", "model = \"point_based\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3", 0.0),
+    ];
+    for (name, material, damping) in stiff {
+        let scene = |dt: &str| {
+            let text = format!(
+                "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 343 }}\n\
+                 [material]\n{material}\n[physics]\ndt = {dt}\ndamping = {damping}\n[initial]\nstretch = [1.2, 1.0, 1.0]\n"
+            );
+            Scene::from_toml_str(&text, Path::new(".")).unwrap()
+        };
+        let auto = Tissue::from_scene(&scene("\"auto\"")).unwrap();
+        let dt = auto.step.dt as f64;
+        let mut b = CpuBackend::new(auto, Threading::Parallel).unwrap();
+        let mut ok = true;
+        for _ in 0..40 {
+            b.step(50);
+            ok &= check_bounded(&mut b, 100.0).is_ok();
+        }
+        let mut fixed = CpuBackend::new(
+            Tissue::from_scene(&scene("1e-3")).unwrap(),
+            Threading::Parallel,
+        )
+        .unwrap();
+        let mut fixed_ok = true;
+        for _ in 0..40 {
+            fixed.step(50);
+            fixed_ok &= check_bounded(&mut fixed, 100.0).is_ok();
+        }
+        eprintln!("{name}: auto dt {dt:.2e} s bounded {ok}; 1 ms bounded {fixed_ok}");
+        assert!(ok, "{name}: dt = auto ({dt:e} s) ran away");
+        assert!(
+            !fixed_ok,
+            "{name}: the stiff scene is stable at 1 ms too: not a stiff case"
+        );
+    }
+}

@@ -94,13 +94,14 @@ fn run(cli: Cli) -> Result<()> {
             let (scene, _) = load(&scene)?;
             println!("{}", SceneInfo::of(&scene)?);
             let tissue = needlesim::Tissue::from_scene(&scene)?;
+            let dt = tissue.step.dt as f64;
             let mut b = needlesim::CpuBackend::new(tissue, needlesim::Threading::Parallel)?;
             let est = needlesim::core::stability::max_eigenvalue(&mut b, 40)?;
             println!(
                 "stability  critical dt {:.3e} s (undamped, at the initial state), scene dt {:.3e} s ({:.2} of it)",
                 est.critical_dt,
-                scene.physics.dt,
-                scene.physics.dt / est.critical_dt
+                dt,
+                dt / est.critical_dt
             );
         }
         Command::Adapter => {

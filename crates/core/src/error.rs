@@ -137,7 +137,7 @@ pub enum SimError {
     /// unstable (time step too large for the stiffness) and about to overflow.
     #[error(
         "simulation diverged at step {step}: node {node} moves at {speed:.3e} m/s, above \
-         physics.max_speed = {limit} m/s (reduce physics.dt or the stiffness)"
+         physics.max_speed = {limit} m/s (reduce physics.dt, or use dt = \"auto\")"
     )]
     Runaway {
         /// Step counter when it was detected.

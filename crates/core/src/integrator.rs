@@ -21,12 +21,12 @@ pub struct StepParams {
 }
 
 impl StepParams {
-    /// From the scene's physics table.
-    pub fn from_physics(p: &Physics) -> StepParams {
+    /// From the time step `dt` in seconds and the scene's physics table.
+    pub fn new(dt: f64, p: &Physics) -> StepParams {
         StepParams {
-            dt: p.dt as f32,
+            dt: dt as f32,
             gravity: p.gravity.map(|g| g as f32),
-            damping_factor: (1.0 / (1.0 + p.dt * p.damping)) as f32,
+            damping_factor: (1.0 / (1.0 + dt * p.damping)) as f32,
         }
     }
 }

@@ -321,9 +321,10 @@ impl Material {
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Physics {
-    /// Time step in seconds.
+    /// Time step: seconds, or `"auto"` for half the critical time step estimated from the
+    /// model at the initial state ([`crate::stability`]).
     #[serde(default = "default_dt")]
-    pub dt: f64,
+    pub dt: TimeStep,
     /// Gravity in m/s^2.
     #[serde(default)]
     pub gravity: [f64; 3],
@@ -342,8 +343,36 @@ pub struct Physics {
     pub check_every: u64,
 }
 
-fn default_dt() -> f64 {
-    1e-3
+fn default_dt() -> TimeStep {
+    TimeStep::Seconds(1e-3)
+}
+
+/// A time step in seconds or chosen by the engine.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TimeStep {
+    /// This many seconds.
+    Seconds(f64),
+    /// [`AUTO_DT_SAFETY`] times the critical time step estimated from the model.
+    Auto,
+}
+
+/// The fraction of the estimated critical time step that `dt = "auto"` uses. The estimate
+/// is made at the initial state; a half leaves room for the stiffening of large
+/// deformations (the divergence guard catches what it does not).
+pub const AUTO_DT_SAFETY: f64 = 0.5;
+
+impl<'de> Deserialize<'de> for TimeStep {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        match toml::Value::deserialize(d)? {
+            toml::Value::Float(f) => Ok(TimeStep::Seconds(f)),
+            toml::Value::Integer(i) => Ok(TimeStep::Seconds(i as f64)),
+            toml::Value::String(s) if s == "auto" => Ok(TimeStep::Auto),
+            other => Err(D::Error::custom(format!(
+                "`physics.dt` must be a number of seconds or \"auto\", got {other}"
+            ))),
+        }
+    }
 }
 fn default_max_speed() -> f64 {
     100.0
@@ -682,7 +711,9 @@ impl Scene {
             }
         }
         let p = &self.physics;
-        positive_finite("physics.dt", p.dt)?;
+        if let TimeStep::Seconds(dt) = p.dt {
+            positive_finite("physics.dt", dt)?;
+        }
         for g in p.gravity {
             finite("physics.gravity", g)?;
         }

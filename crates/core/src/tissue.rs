@@ -6,7 +6,7 @@ use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
 use crate::models::{ArrayInfo, ShapeInfo};
 use crate::neighbours::Neighbours;
-use crate::scene::{Material, Scene};
+use crate::scene::{Material, Scene, TimeStep, AUTO_DT_SAFETY};
 use crate::state::NodeState;
 
 /// Everything a backend needs to simulate the tissue.
@@ -118,18 +118,38 @@ impl Tissue {
                 }
             })
             .collect();
-        Ok(Tissue {
+        let mut tissue = Tissue {
             state: NodeState::new(positions, capacity),
             neighbours,
             shape,
             triangles: cloud.triangles,
             n_mesh: n,
             material: scene.material,
-            step: crate::integrator::StepParams::from_physics(&scene.physics),
+            step: crate::integrator::StepParams::new(1e-3, &scene.physics),
             node_mass,
             volume: cloud.volume,
             n_fixed,
-        })
+        };
+        let dt = match scene.physics.dt {
+            TimeStep::Seconds(dt) => dt,
+            TimeStep::Auto => {
+                let mut probe =
+                    crate::cpu::CpuBackend::new(tissue.clone(), crate::cpu::Threading::Parallel)
+                        .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
+                let est = crate::stability::max_eigenvalue(&mut probe, 40)
+                    .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
+                if !est.critical_dt.is_finite() {
+                    return Err(SceneError::invalid(
+                        "physics.dt",
+                        "\"auto\" needs a stiffness to size the step from (no free node \
+                         feels an elastic force); give the step in seconds",
+                    ));
+                }
+                AUTO_DT_SAFETY * est.critical_dt
+            }
+        };
+        tissue.step = crate::integrator::StepParams::new(dt, &scene.physics);
+        Ok(tissue)
     }
 
     /// Every simulation array with its size in bytes: node state, neighbours, then the
