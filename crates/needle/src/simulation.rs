@@ -192,6 +192,7 @@ impl Prepared {
             state: PunctureState::Outside,
             nodes: Vec::new(),
             velocities: Vec::new(),
+            positions: Vec::new(),
             tip_placed: [0.0; 3],
             entry: None,
             time: 0.0,
@@ -226,6 +227,8 @@ pub struct Simulation {
     nodes: Vec<NeedleNode>,
     /// Velocities written to the needle nodes this step.
     velocities: Vec<Vec4>,
+    /// Positions written to the needle nodes this step.
+    positions: Vec<Vec4>,
     tip_placed: [f64; 3],
     entry: Option<[f64; 3]>,
     time: f64,
@@ -630,7 +633,15 @@ impl Simulation {
             self.remove()?;
             self.add(NodeRole::Tip, tip, now.length(), &seeds, v_tip)?;
             self.tip_placed = tip;
+            pos.pop();
+            pos.push(tip);
         }
+        // What the needle nodes' positions are now, so that `constrain` need not read
+        // them back again.
+        self.positions = pos
+            .iter()
+            .map(|x| [x[0] as f32, x[1] as f32, x[2] as f32, 0.0])
+            .collect();
         Ok(())
     }
 
@@ -697,10 +708,19 @@ impl Simulation {
             return Ok(());
         }
         let n0 = self.editor.n_mesh();
-        let mut p = vec![[0.0f32; 4]; m];
         let mut v = vec![[0.0f32; 4]; m];
-        self.backend.read(NodeField::Position, n0..n0 + m, &mut p)?;
-        self.backend.read(NodeField::Velocity, n0..n0 + m, &mut v)?;
+        // Only sliding nodes need their own state; sticking ones follow the needle. The
+        // positions come from the contact update when it read them this step.
+        let mut p = std::mem::take(&mut self.positions);
+        if self.nodes.iter().any(|n| !self.kinematic(n)) {
+            if p.len() != m {
+                p = vec![[0.0f32; 4]; m];
+                self.backend.read(NodeField::Position, n0..n0 + m, &mut p)?;
+            }
+            self.backend.read(NodeField::Velocity, n0..n0 + m, &mut v)?;
+        } else {
+            p = vec![[0.0f32; 4]; m];
+        }
         let t = now.direction();
         let inv_mass = self.editor.inverse_mass();
         for k in 0..m {
@@ -728,6 +748,7 @@ impl Simulation {
         self.backend.write(NodeField::Position, n0, &p)?;
         self.backend.write(NodeField::Velocity, n0, &v)?;
         self.velocities = v;
+        self.positions = p;
         Ok(())
     }
 
@@ -740,8 +761,8 @@ impl Simulation {
             let mut f = vec![[0.0f32; 4]; m];
             self.backend.read(NodeField::Force, n0..n0 + m, &mut f)?;
             let t = now.direction();
-            let mut p = vec![[0.0f32; 4]; m];
-            self.backend.read(NodeField::Position, n0..n0 + m, &mut p)?;
+            // The positions `constrain` wrote: the force evaluation does not move nodes.
+            let p = std::mem::take(&mut self.positions);
             for k in 0..m {
                 let fe = xyz(f[k]);
                 let node = self.nodes[k];
