@@ -92,8 +92,9 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { scene } => {
             let (scene, _) = load(&scene)?;
-            println!("{}", SceneInfo::of(&scene)?);
-            let tissue = needlesim::Tissue::from_scene(&scene)?;
+            // One build serves the summary and the stability probe.
+            let tissue = needlesim::needle::Simulation::prepare(&scene)?.tissue;
+            println!("{}", SceneInfo::of_tissue(&scene, &tissue));
             let dt = tissue.step.dt as f64;
             let mut b = needlesim::CpuBackend::new(tissue, needlesim::Threading::Parallel)?;
             let est = needlesim::core::stability::max_eigenvalue(&mut b, 40)?;

@@ -90,32 +90,17 @@ pub trait Backend: Send {
         offset: usize,
         data: &[u8],
     ) -> Result<(), SimError>;
-    /// Reads the positions of all active nodes and returns an error naming the first
-    /// non-finite position or velocity.
+    /// Reads the positions and velocities of all active nodes and returns an error naming
+    /// the first non-finite one ([`check_bounded`] without a speed bound).
     fn check_finite(&mut self) -> Result<(), SimError> {
-        let n = self.n_active();
-        let mut buf = vec![[0.0f32; 4]; n];
-        for (field, name) in [
-            (NodeField::Position, "position"),
-            (NodeField::Velocity, "velocity"),
-        ] {
-            self.read(field, 0..n, &mut buf)?;
-            if let Some(node) = first_non_finite(&buf) {
-                return Err(SimError::Diverged {
-                    step: self.steps_taken(),
-                    node,
-                    field: name,
-                });
-            }
-        }
-        Ok(())
+        check_bounded(self, f64::INFINITY)
     }
 }
 
 /// Checks positions and velocities of the active nodes: an error names the first
 /// non-finite value, or the fastest free node (inverse mass > 0) when it is faster than
 /// `max_speed` m/s.
-pub fn check_bounded(backend: &mut dyn Backend, max_speed: f64) -> Result<(), SimError> {
+pub fn check_bounded<B: Backend + ?Sized>(backend: &mut B, max_speed: f64) -> Result<(), SimError> {
     let n = backend.n_active();
     let step = backend.steps_taken();
     let mut p = vec![[0.0f32; 4]; n];
