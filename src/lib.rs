@@ -20,6 +20,7 @@ pub mod info;
 pub mod needle_output;
 pub mod output;
 pub mod plot;
+pub mod report;
 pub mod runner;
 
 pub use info::SceneInfo;

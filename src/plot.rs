@@ -103,6 +103,34 @@ fn ticks(lo: f64, hi: f64) -> Vec<f64> {
     out
 }
 
+/// Tick positions: on a log axis (values are log10) the 1, 2, 5 multiples of the decades
+/// in range, only the decades when there are more than 8 of those, or the linear ticks of
+/// the exponents when fewer than 2 fall in range.
+fn axis_ticks(lo: f64, hi: f64, log: bool) -> Vec<f64> {
+    if !log {
+        return ticks(lo, hi);
+    }
+    let decades: Vec<f64> = (lo.floor() as i64..=hi.ceil() as i64)
+        .map(|k| k as f64)
+        .filter(|&k| k >= lo && k <= hi)
+        .collect();
+    if decades.len() > 8 {
+        let step = (decades.len() as f64 / 6.0).ceil() as usize;
+        return decades.into_iter().step_by(step).collect();
+    }
+    let fine: Vec<f64> = (lo.floor() as i64..=hi.ceil() as i64)
+        .flat_map(|k| [1.0f64, 2.0, 5.0].map(|m| k as f64 + m.log10()))
+        .filter(|&t| t >= lo && t <= hi)
+        .collect();
+    if fine.len() > 8 {
+        decades
+    } else if fine.len() >= 2 {
+        fine
+    } else {
+        ticks(lo, hi)
+    }
+}
+
 fn number(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
@@ -115,11 +143,48 @@ fn number(v: f64) -> String {
     }
 }
 
-/// Writes the series as a line plot to `path` (PNG, 900 x 560).
+/// Axis scales and point markers.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Axes {
+    /// Logarithmic horizontal axis (points with x <= 0 are left out).
+    pub log_x: bool,
+    /// Logarithmic vertical axis (points with y <= 0 are left out).
+    pub log_y: bool,
+    /// A small square at every point.
+    pub markers: bool,
+}
+
+/// Writes the series as a line plot to `path` (PNG, 900 x 560), linear axes.
 pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Result<()> {
+    plot(path, labels, Axes::default(), series)
+}
+
+/// Writes the series as a line plot to `path` (PNG, 900 x 560) with the given axes.
+pub fn plot(path: &Path, labels: &Labels, axes: Axes, series: &[Series]) -> std::io::Result<()> {
     let mut cv = Canvas {
         px: vec![255; W * H * 3],
     };
+    let tf = |v: f64, log: bool| {
+        if !log {
+            v
+        } else if v > 0.0 {
+            v.log10()
+        } else {
+            f64::NAN
+        }
+    };
+    let series: Vec<Series> = series
+        .iter()
+        .map(|s| Series {
+            label: s.label,
+            colour: s.colour,
+            points: s
+                .points
+                .iter()
+                .map(|p| (tf(p.0, axes.log_x), tf(p.1, axes.log_y)))
+                .collect(),
+        })
+        .collect();
     let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
     let all: Vec<(f64, f64)> = series
         .iter()
@@ -151,10 +216,17 @@ pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Re
     let sy = |y: f64| TOP as f64 + (y1 - y) / (y1 - y0) * ph;
     let grey = [225, 225, 225];
     let black = [0, 0, 0];
-    for t in ticks(x0, x1) {
+    let label = |t: f64, log: bool| {
+        if log {
+            number(10f64.powf(t))
+        } else {
+            number(t)
+        }
+    };
+    for t in axis_ticks(x0, x1, axes.log_x) {
         let x = sx(t);
         cv.line((x, TOP as f64), (x, (H - BOTTOM) as f64), grey, false);
-        let s = number(t);
+        let s = label(t, axes.log_x);
         cv.text(
             x as i64 - text_width(&s, 2) / 2,
             (H - BOTTOM + 8) as i64,
@@ -163,10 +235,10 @@ pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Re
             black,
         );
     }
-    for t in ticks(y0, y1) {
+    for t in axis_ticks(y0, y1, axes.log_y) {
         let y = sy(t);
         cv.line((LEFT as f64, y), ((W - RIGHT) as f64, y), grey, false);
-        let s = number(t);
+        let s = label(t, axes.log_y);
         cv.text(
             LEFT as i64 - 8 - text_width(&s, 2),
             y as i64 - 7,
@@ -175,7 +247,7 @@ pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Re
             black,
         );
     }
-    if y0 < 0.0 && y1 > 0.0 {
+    if !axes.log_y && y0 < 0.0 && y1 > 0.0 {
         cv.line(
             (LEFT as f64, sy(0.0)),
             ((W - RIGHT) as f64, sy(0.0)),
@@ -197,7 +269,7 @@ pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Re
     ] {
         cv.line(p, q, black, false);
     }
-    for s in series {
+    for s in &series {
         let mut last: Option<(f64, f64)> = None;
         for p in &s.points {
             if !(p.0.is_finite() && p.1.is_finite()) {
@@ -205,6 +277,13 @@ pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Re
                 continue;
             }
             let q = (sx(p.0), sy(p.1));
+            if axes.markers {
+                for d in -3..=3 {
+                    for e in -3..=3 {
+                        cv.set(q.0 as i64 + d, q.1 as i64 + e, s.colour);
+                    }
+                }
+            }
             if let Some(a) = last {
                 cv.line(a, q, s.colour, true);
             } else {
@@ -230,7 +309,7 @@ pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> std::io::Re
     // The vertical axis label, written horizontally above the axis.
     cv.text(8, (TOP - 22) as i64, labels.y, 2, black);
     let mut ly = TOP as i64 + 10;
-    for s in series {
+    for s in series.iter().filter(|s| !s.label.is_empty()) {
         let lx = (W - RIGHT) as i64 - 20 - text_width(s.label, 2) - 30;
         cv.line(
             (lx as f64, ly as f64 + 7.0),

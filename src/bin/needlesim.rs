@@ -42,6 +42,20 @@ enum Command {
     },
     /// Print the GPU adapter wgpu finds (or why there is none).
     Adapter,
+    /// Accuracy against reference solutions, wall time, stable time steps and extreme
+    /// cases for every model: writes CSV files, PNG plots and report.md.
+    Report {
+        /// Output directory [default: out/report].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Full size (resolutions up to about 12,000 nodes; long) instead of the reduced one.
+        #[arg(long)]
+        full: bool,
+        /// Backends to time every case on, comma separated [default: cpu,cpu-parallel and
+        /// gpu when an adapter is found].
+        #[arg(long, value_delimiter = ',', value_parser = parse_backend)]
+        backends: Vec<BackendChoice>,
+    },
     /// Print node count, neighbour statistics and the bytes of every allocated array.
     Info {
         /// Scene file (TOML); the shipped default when omitted.
@@ -103,6 +117,37 @@ fn run(cli: Cli) -> Result<()> {
                 est.critical_dt,
                 dt,
                 dt / est.critical_dt
+            );
+        }
+        Command::Report {
+            out,
+            full,
+            backends,
+        } => {
+            use needlesim::report::{run_report, ReportOptions, ReportSize};
+            let timing_backends = if backends.is_empty() {
+                let mut b = vec![BackendChoice::Cpu, BackendChoice::CpuParallel];
+                if GpuContext::new(0).is_ok() {
+                    b.push(BackendChoice::Gpu);
+                }
+                b
+            } else {
+                backends
+            };
+            let options = ReportOptions {
+                out: out.unwrap_or_else(|| PathBuf::from("out/report")),
+                size: if full {
+                    ReportSize::Full
+                } else {
+                    ReportSize::Reduced
+                },
+                timing_backends,
+            };
+            let summary = run_report(&options, |line| println!("{line}"))?;
+            println!(
+                "report      {} ({:.0} s): report.md, accuracy.csv, timing.csv, stable_dt.csv, extreme.csv, PNG plots",
+                options.out.display(),
+                summary.elapsed.as_secs_f64()
             );
         }
         Command::Adapter => {
