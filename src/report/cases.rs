@@ -553,6 +553,7 @@ fn frequency(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> 
     let mut steps = 0u64;
     let mut last = mean_dy(b.as_mut(), &tip, &s.rest)?;
     let mut crossings: Vec<f64> = Vec::new();
+    let mut armed = false;
     while steps < max_steps && crossings.len() < 2 {
         b.step(every);
         steps += every;
@@ -560,10 +561,16 @@ fn frequency(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> 
             check_bounded(b.as_mut(), 100.0)?;
         }
         let y = mean_dy(b.as_mut(), &tip, &s.rest)?;
+        // Hysteresis: the downward crossing counts only after the tip has been above
+        // half the initial amplitude, so that higher modes riding on the first one near
+        // zero do not count as crossings (they did, giving periods of milliseconds).
+        if !crossings.is_empty() && y > 0.5 * BEAM_DEFLECTION {
+            armed = true;
+        }
         let crossed = if crossings.is_empty() {
             last < 0.0 && y >= 0.0
         } else {
-            last > 0.0 && y <= 0.0
+            armed && last > 0.0 && y <= 0.0
         };
         if crossed {
             let t1 = (steps - every) as f64 * dt;

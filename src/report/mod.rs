@@ -332,7 +332,7 @@ fn write_all(options: &ReportOptions, s: &ReportSummary) -> Result<(), ReportErr
         };
         writeln!(
             csv,
-            "{},{},{},{},\"{}\"",
+            "\"{}\",{},{},{},\"{}\"",
             r.case.label(),
             r.model.label(),
             r.outcome.word(),
