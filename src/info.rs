@@ -26,6 +26,8 @@ pub struct SceneInfo {
     pub node_mass: f64,
     /// Volume in m^3.
     pub volume: f64,
+    /// Smallest, mean and largest node volume `V_i` in m^3 (continuum models only).
+    pub node_volumes: Option<[f64; 3]>,
     /// Neighbour slots per node.
     pub k: usize,
     /// Neighbour statistics.
@@ -63,6 +65,13 @@ impl SceneInfo {
             bounds: needlesim_core::geometry::bounds(&rest),
             node_mass: t.node_mass,
             volume: t.volume,
+            node_volumes: t.shape.node_volumes(n).map(|v| {
+                let v: Vec<f64> = v.iter().map(|&x| x as f64).collect();
+                let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+                let min = v.iter().cloned().fold(f64::INFINITY, f64::min);
+                let max = v.iter().cloned().fold(0.0, f64::max);
+                [min, mean, max]
+            }),
             k: t.neighbours.k,
             neighbours: t.neighbours.stats(n),
             arrays: t.allocations(),
@@ -104,6 +113,12 @@ impl fmt::Display for SceneInfo {
             "volume     {:.4e} m^3, node mass {:.4e} kg",
             self.volume, self.node_mass
         )?;
+        if let Some([min, mean, max]) = self.node_volumes {
+            writeln!(
+                f,
+                "node volumes min {min:.4e} mean {mean:.4e} max {max:.4e} m^3"
+            )?;
+        }
         let s = &self.neighbours;
         writeln!(
             f,

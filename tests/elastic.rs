@@ -320,7 +320,7 @@ fn each_model_allocates_only_its_arrays() {
         (
             "pba",
             MODELS[4].1,
-            &["rest_position", "inverse_moment", "volume", "first_pass"],
+            &["rest_position", "inverse_moment", "first_pass"],
         ),
     ];
     for (label, material, own) in expected {

@@ -153,7 +153,7 @@ fn dispatch_beyond_one_grid_dimension() {
 
 /// Shape information rows written through the `Backend` trait change the forces the same
 /// way on both backends (here: node 7's spring rest lengths, and PBA's inverse moment and
-/// volume of node 9); bad writes are typed errors on both.
+/// rest position and volume of node 9); bad writes are typed errors on both.
 #[test]
 fn shape_rows_written_on_either_backend_agree() {
     use needlesim::SimError;
@@ -165,7 +165,14 @@ fn shape_rows_written_on_either_backend_agree() {
             7 * 16 * 4,
             vec![0.02f32; 16],
         ),
-        ("pba", MODELS[4].1, "volume", 9 * 4, vec![2e-6f32]),
+        // Node 9's rest position moved, with its volume (the w lane) changed.
+        (
+            "pba",
+            MODELS[4].1,
+            "rest_position",
+            9 * 16,
+            vec![0.01f32, 0.02, 0.03, 2e-6],
+        ),
         (
             "pba",
             MODELS[4].1,

@@ -17,9 +17,10 @@ fn spec(level: usize) -> RunSpec {
 
 /// DEB and PBA at 2197 nodes (the finest stretch tested here): the end-plate stress is
 /// E eps within 15% and the lateral strain -nu eps within 15% (the tolerance).
-/// Measured (dev machine): stress error 3.7% DEB, 9.0% PBA, falling with resolution
-/// (PBA 16.9%, 13.8%, 9.0%, 6.1% at 125, 729, 2197, 4913 nodes; lateral strain 14%, 9.5%,
-/// 6.1%, 4.2%).
+/// Measured (dev machine, cell volumes): stress error 0.2% DEB, 1.3% PBA (its Green strain
+/// at 1% stretch: St Venant-Kirchhoff stress is E (eps + 3/2 eps^2), 1.5% above E eps);
+/// lateral strain 0.2% DEB, 0.4% PBA. With the density-estimated volumes of Mueller 2004
+/// PBA's stress error was 9.0%.
 #[test]
 fn continuum_models_carry_e_eps_in_the_stretch() {
     for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
@@ -36,6 +37,26 @@ fn continuum_models_carry_e_eps_in_the_stretch() {
             "{}: lateral strain error {:.3}",
             model.label(),
             r.secondary
+        );
+    }
+}
+
+/// DEB, co-rotated DEB and PBA cantilever tip deflection under gravity within 15% of
+/// Timoshenko at 1025 nodes (the tolerance; the finest beam tested here). Measured
+/// (dev machine, cell volumes): DEB 7.4% at 496 and 5.3% at 1025 nodes, PBA 6.0% and 4.4%.
+/// With uniform node volumes DEB was 26.7% off at 1025 nodes, with density volumes PBA
+/// 37.8%: surface nodes weighted like interior ones make the beam too stiff in bending.
+#[test]
+fn continuum_cantilever_tip_within_15_percent() {
+    for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
+        let r = run_case(CaseId::Cantilever, model, &spec(2)).unwrap();
+        assert!(r.converged, "{}: not settled", model.label());
+        assert!(
+            r.error < 0.15,
+            "{}: tip deflection error {:.3} at {} nodes",
+            model.label(),
+            r.error,
+            r.nodes
         );
     }
 }
@@ -65,10 +86,14 @@ fn calibration_rule_reproduces_young_modulus() {
     }
 }
 
-/// The continuum models converge: from 729 to 2197 nodes both the punch force error
-/// (against scikit-fem) and the displacement-field error fall. Measured (dev machine,
-/// release): DEB force 12.9% -> 8.5% -> 6.5% and field 6.9% -> 3.9% -> 2.7% at 729,
-/// 2197, 4913 nodes; PBA force 39.8% -> 27.7% -> 21.2%, field 12.2% -> 7.7% -> 5.8%.
+/// The continuum models converge: from 729 to 2197 nodes the displacement-field error
+/// (against scikit-fem) falls for all three, and the punch force error for the two linear
+/// ones. Measured (dev machine, release, cell volumes): DEB force 4.3% -> 2.9% -> 2.1%,
+/// field 4.2% -> 2.3% -> 1.5% at 729, 2197, 4913 nodes; co-rotated DEB force 3.4% -> 1.9%.
+/// PBA's Green strain is geometrically nonlinear, and at the 2 mm punch (2% nominal strain)
+/// it is softer than the linear reference by 1.5%, 2.7%, 3.4% (field 7.4% -> 4.7% -> 3.7%);
+/// at a quarter of the depth, scaled by 4, its force is 1.331, 1.318, 1.310 N, converging
+/// from above like DEB. So PBA's force is held to 5% instead of a falling error.
 /// Mass-spring and shape matching do not converge to the continuum (their calibrated
 /// effective modulus drifts with resolution, calibration module): their force error
 /// grows from 729 to 4913 nodes (msm 13% -> 25%), which the report shows.
@@ -77,7 +102,7 @@ fn continuum_error_falls_with_resolution() {
     for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
         let a = run_case(CaseId::Indentation, model, &spec(1)).unwrap();
         let b = run_case(CaseId::Indentation, model, &spec(2)).unwrap();
-        eprintln!(
+        let msg = format!(
             "{}: force error {:.3} -> {:.3}, field {:.3} -> {:.3}",
             model.label(),
             a.error,
@@ -85,15 +110,13 @@ fn continuum_error_falls_with_resolution() {
             a.secondary,
             b.secondary
         );
-        assert!(
-            b.error < a.error && b.secondary < a.secondary,
-            "{}: force error {:.3} -> {:.3}, field {:.3} -> {:.3}",
-            model.label(),
-            a.error,
-            b.error,
-            a.secondary,
-            b.secondary
-        );
+        eprintln!("{msg}");
+        assert!(b.secondary < a.secondary, "{msg}");
+        if model == ModelId::Pba {
+            assert!(a.error < 0.05 && b.error < 0.05, "{msg}");
+        } else {
+            assert!(b.error < a.error, "{msg}");
+        }
     }
 }
 

@@ -238,19 +238,19 @@ impl Backend for CpuBackend {
                 ShapeInfo::DebunneMeshfree {
                     rest_position,
                     inverse_moment,
-                    node_volume,
                     first_pass,
                     corotation,
+                    ..
                 },
             ) => {
                 let c = mls::ContinuumConstants::of(&t.material).expect("Debunne material");
                 let (lambda, mu, hg) = (c.lambda, c.mu, c.hourglass);
-                let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], *node_volume);
+                let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
                 match corotation {
                     None => {
                         map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
                             debunne_meshfree::first_pass(
-                                i, pos, rest, nb, &a_inv[i], vol, lambda, mu, hg, None,
+                                i, pos, rest, nb, &a_inv[i], rest[i][3], lambda, mu, hg, None,
                             )
                         });
                     }
@@ -275,7 +275,7 @@ impl Backend for CpuBackend {
                                     rest,
                                     nb,
                                     &a_inv[i],
-                                    vol,
+                                    rest[i][3],
                                     lambda,
                                     mu,
                                     hg,
@@ -295,14 +295,14 @@ impl Backend for CpuBackend {
                 ShapeInfo::PointBased {
                     rest_position,
                     inverse_moment,
-                    volume,
                     first_pass,
+                    ..
                 },
             ) => {
                 let c = mls::ContinuumConstants::of(&t.material).expect("point based material");
-                let (rest, a_inv, vol) = (&rest_position[..], &inverse_moment[..], &volume[..]);
+                let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
                 map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
-                    point_based::first_pass(i, pos, rest, nb, &a_inv[i], vol[i], &c)
+                    point_based::first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
                 });
                 let first = &first_pass[..];
                 map_nodes(pool, self.parallel, forces, |i| {

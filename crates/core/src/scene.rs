@@ -225,6 +225,10 @@ pub struct DebunneParams {
     /// neighbourhood's motion, in units of `mu V_i / sum_j w_ij |x_ij|^2`.
     #[serde(default = "default_hourglass")]
     pub hourglass: f64,
+    /// The volume `V_i` that weights each node's strain energy: `cell` (default),
+    /// `density` or `uniform` (see [`NodeVolumes`]).
+    #[serde(default)]
+    pub node_volumes: NodeVolumes,
 }
 
 /// Hourglass control on by default: without it zig-zag fields cost no energy.
@@ -248,6 +252,31 @@ pub struct PointBasedParams {
     /// whose zig-zag modes cost no energy; 0.1 removes them without changing the patch test.
     #[serde(default)]
     pub hourglass: f64,
+    /// The volume `V_i` that weights each node's strain energy: `cell` (default),
+    /// `density` (the original method) or `uniform` (see [`NodeVolumes`]).
+    #[serde(default)]
+    pub node_volumes: NodeVolumes,
+}
+
+/// The node volumes `V_i` of the continuum models: the weights of their nodal
+/// integration `U = sum_i V_i W(F_i)`. All three add up to the volume enclosed by the
+/// surface; they differ in how it is shared.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeVolumes {
+    /// The node's cell: the part of the body nearer to it than to any other node (exact on
+    /// box lattices: `h^3`, halved on each face; sub-sampled for OBJ geometry). Nodes on
+    /// the surface get less, which makes bending stiffness converge (the report's
+    /// cantilever).
+    #[default]
+    Cell,
+    /// The density estimate of Mueller et al. 2004, section 4.2: `V_i = m_i / rho_i`,
+    /// `rho_i = sum_j m_j W_ij`. Surface nodes have fewer neighbours, a lower density and
+    /// so a larger volume: too stiff in bending.
+    Density,
+    /// Every node `V / n`: also too stiff in bending, by `(n+1)/(n-1)` with `n` nodes
+    /// through the thickness.
+    Uniform,
 }
 
 /// Lame parameters `(lambda, mu)` from Young's modulus and the Poisson ratio.
@@ -704,6 +733,7 @@ impl Scene {
                 poisson_ratio,
                 volume_stiffness,
                 hourglass,
+                ..
             }) => {
                 elastic_moduli(young_modulus, poisson_ratio)?;
                 non_negative_finite("material.hourglass", hourglass)?;

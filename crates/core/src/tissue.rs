@@ -92,6 +92,7 @@ impl Tissue {
             crate::models::BuildContext {
                 triangles: &cloud.triangles,
                 volume: cloud.volume,
+                node_volumes: &cloud.node_volumes,
             },
         );
 

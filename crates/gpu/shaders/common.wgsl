@@ -15,8 +15,8 @@ struct Params {
     mu: f32,
     volume_stiffness: f32,
     hourglass: f32,
-    node_volume: f32,
     pad0: f32,
+    pad3: f32,
     pad1: f32,
     pad2: f32,
 }

@@ -1,6 +1,7 @@
 // First pass of the two continuum models (mls.rs, debunne_meshfree.rs, point_based.rs):
 // the moving-least-squares displacement gradient J_i, the stress P_i of the model, and the
-// packed result [V P A^-1 - c J (9 floats), c, 0, 0] as three vec4 per node. Entry
+// packed result [V P A^-1 - c J (9 floats), c, 0, 0] as three vec4 per node. The node
+// volume V_i is the w lane of its rest position. Entry
 // `deb_corotated` is composed after cluster_frame.wgsl.
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -10,7 +11,6 @@
 @group(0) @binding(4) var<storage, read> nb_weight: array<f32>;
 @group(0) @binding(5) var<storage, read> inverse_moment: array<f32>;
 @group(0) @binding(6) var<storage, read_write> first_pass: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read> volume: array<f32>;
 @group(0) @binding(8) var<storage, read> shape_vector: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read_write> rotation: array<vec4<f32>>;
 
@@ -82,7 +82,7 @@ fn deb_linear(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let g = gradient(i);
-    store(i, linear_stress(g.j), g, params.node_volume);
+    store(i, linear_stress(g.j), g, rest[i].w);
 }
 
 @compute @workgroup_size(64)
@@ -96,7 +96,7 @@ fn deb_corotated(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = quat_to_mat(fr.q);
     let g = gradient(i);
     let s = linear_stress(mat_mul(transpose(r), g.j + identity()) - identity());
-    store(i, mat_mul(r, s), g, params.node_volume);
+    store(i, mat_mul(r, s), g, rest[i].w);
 }
 
 @compute @workgroup_size(64)
@@ -116,5 +116,5 @@ fn pba(@builtin(global_invocation_id) gid: vec3<u32>) {
         let det = dot(f[0], cof[0]);
         p += params.volume_stiffness * (det - 1.0) * cof;
     }
-    store(i, p, g, volume[i]);
+    store(i, p, g, rest[i].w);
 }

@@ -30,8 +30,7 @@ struct Params {
     mu: f32,
     volume_stiffness: f32,
     hourglass: f32,
-    node_volume: f32,
-    pad: [f32; 3],
+    pad: [f32; 4],
 }
 
 /// Steps recorded per command buffer by [`Backend::step`].
@@ -154,8 +153,7 @@ impl GpuBackend {
             mu: 0.0,
             volume_stiffness: 0.0,
             hourglass: 0.0,
-            node_volume: 0.0,
-            pad: [0.0; 3],
+            pad: [0.0; 4],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
         let model: Vec<(&'static str, wgpu::Buffer)> = tissue
@@ -164,9 +162,6 @@ impl GpuBackend {
             .into_iter()
             .map(|(name, bytes)| (name, b(name, bytes)))
             .collect();
-        if let ShapeInfo::DebunneMeshfree { node_volume, .. } = &tissue.shape {
-            params.node_volume = *node_volume;
-        }
         match tissue.material {
             Material::MassSpring(MassSpringParams {
                 stiffness,
@@ -447,10 +442,7 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
                 (6, b.model("first_pass")),
             ];
             let entry = match shape {
-                ShapeInfo::PointBased { .. } => {
-                    entries.push((7, b.model("volume")));
-                    "pba"
-                }
+                ShapeInfo::PointBased { .. } => "pba",
                 _ if corotated => {
                     entries.push((8, b.model("shape_vector")));
                     entries.push((9, b.model("rotation")));

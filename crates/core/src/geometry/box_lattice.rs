@@ -102,14 +102,32 @@ impl BoxLattice {
         (i + self.dims[0] * (j + self.dims[1] * k)) as u32
     }
 
-    /// Node positions, surface triangles and volume.
+    /// Cell volume of node (i, j, k): the product over the axes of `h`, or `h / 2` for an
+    /// index on the box's face (the trapezoid rule of each axis). Exact for the lattice:
+    /// these are the node's Voronoi cells clipped to the box.
+    pub fn node_volume(&self, ijk: [usize; 3]) -> f64 {
+        (0..3)
+            .map(|a| {
+                let end = ijk[a] == 0 || ijk[a] + 1 == self.dims[a];
+                if end {
+                    0.5 * self.spacing
+                } else {
+                    self.spacing
+                }
+            })
+            .product()
+    }
+
+    /// Node positions, surface triangles, volume and cell volumes.
     pub fn cloud(&self) -> NodeCloud {
         let [nx, ny, nz] = self.dims;
         let h = self.spacing;
         let mut positions = Vec::with_capacity(self.len());
+        let mut node_volumes = Vec::with_capacity(self.len());
         for k in 0..nz {
             for j in 0..ny {
                 for i in 0..nx {
+                    node_volumes.push(self.node_volume([i, j, k]));
                     positions.push([
                         self.origin[0] + i as f64 * h,
                         self.origin[1] + j as f64 * h,
@@ -151,6 +169,7 @@ impl BoxLattice {
             positions,
             triangles,
             volume,
+            node_volumes,
         }
     }
 }
@@ -179,6 +198,13 @@ mod tests {
         let v = signed_volume(&c.positions, &c.triangles);
         assert!((v - c.volume).abs() < 1e-12, "{v} vs {}", c.volume);
         assert!((c.volume - 0.02 * 0.03 * 0.04).abs() < 1e-12);
+        let cells: f64 = c.node_volumes.iter().sum();
+        assert!((cells - c.volume).abs() < 1e-15, "{cells} vs {}", c.volume);
+        // Corner, edge, face and interior cells.
+        assert!((c.node_volumes[l.index(0, 0, 0) as usize] - 1.25e-7).abs() < 1e-18);
+        assert!((c.node_volumes[l.index(1, 0, 0) as usize] - 2.5e-7).abs() < 1e-18);
+        assert!((c.node_volumes[l.index(1, 1, 0) as usize] - 5e-7).abs() < 1e-18);
+        assert!((c.node_volumes[l.index(1, 1, 1) as usize] - 1e-6).abs() < 1e-18);
         crate::geometry::obj::check_closed_manifold(
             std::path::Path::new("box"),
             c.positions.len(),

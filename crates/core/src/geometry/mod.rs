@@ -5,6 +5,7 @@
 //! surface whose inside is filled with a cubic lattice ([`obj`], [`sampling`]).
 
 pub mod box_lattice;
+pub mod cell_volume;
 pub mod obj;
 pub mod sampling;
 
@@ -20,6 +21,10 @@ pub struct NodeCloud {
     pub triangles: Vec<[u32; 3]>,
     /// Volume enclosed by the surface in m^3.
     pub volume: f64,
+    /// Volume of each node's cell (the part of the body nearer to it than to any other
+    /// node) in m^3; they add up to `volume`. The continuum models integrate their energy
+    /// with these weights.
+    pub node_volumes: Vec<f64>,
 }
 
 impl NodeCloud {

@@ -5,7 +5,8 @@
 //! generalised winding number (sum of the triangles' solid angles over 4 pi, van Oosterom
 //! and Strackee 1983) exceeds 1/2 and it lies at least `h / 2` from the surface, so no
 //! interior node crowds a surface vertex. Cost: lattice points times triangles; fine for
-//! the meshes of a needle-insertion scene (a few thousand triangles).
+//! the meshes of a needle-insertion scene (a few thousand triangles). Node cell volumes
+//! come from [`super::cell_volume`], which reuses the lattice's inside/distance values.
 
 use super::obj::Surface;
 use super::NodeCloud;
@@ -22,6 +23,8 @@ pub fn fill_lattice(surface: &Surface, h: f64) -> NodeCloud {
         .iter()
         .map(|t| t.map(|i| surface.vertices[i as usize]))
         .collect();
+    let mut inside = Vec::with_capacity(dims.iter().product());
+    let mut distance = Vec::with_capacity(dims.iter().product());
     for k in 0..dims[2] {
         for j in 0..dims[1] {
             for i in 0..dims[0] {
@@ -30,16 +33,29 @@ pub fn fill_lattice(surface: &Surface, h: f64) -> NodeCloud {
                     origin[1] + j as f64 * h,
                     origin[2] + k as f64 * h,
                 ];
-                if winding_number(p, &tris) > 0.5 && distance_to_triangles(p, &tris) >= 0.5 * h {
+                let is_inside = winding_number(p, &tris) > 0.5;
+                let d = distance_to_triangles(p, &tris);
+                if is_inside && d >= 0.5 * h {
                     positions.push(p);
                 }
+                inside.push(is_inside);
+                distance.push(d);
             }
         }
     }
+    let lattice = super::cell_volume::Lattice {
+        origin,
+        dims,
+        spacing: h,
+        inside,
+        distance,
+    };
+    let node_volumes = super::cell_volume::estimate(&positions, &tris, &lattice, surface.volume);
     NodeCloud {
         positions,
         triangles: surface.triangles.clone(),
         volume: surface.volume,
+        node_volumes,
     }
 }
 

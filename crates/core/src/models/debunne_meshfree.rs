@@ -1,5 +1,5 @@
 //! Debunne's meshfree linear elasticity (DEB; Debunne, Desbrun, Barr, Cani 1999,
-//! "Interactive multiresolution animation of deformable models", the paper's [DDBC99]).
+//! "Interactive multiresolution animation of deformable models", the paper's \[DDBC99\]).
 //!
 //! Debunne et al. step Navier's equation of linear elasticity,
 //! `rho a = mu Lap(u) + (lambda + mu) grad(div u)`, at every node, with the Laplacian and
@@ -10,7 +10,12 @@
 //!
 //! `U = sum_i V_i (mu eps_i : eps_i + lambda/2 tr(eps_i)^2)`, `eps_i = (J_i + J_i^T) / 2`,
 //!
-//! with `J_i` the point-set displacement gradient of [`super::mls`] and `V_i = m_i / rho`.
+//! with `J_i` the point-set displacement gradient of [`super::mls`] and `V_i` the node's
+//! volume ([`crate::scene::NodeVolumes`], by default its cell: `h^3` inside a lattice, halved
+//! on each face). This sum is a nodal quadrature of the strain energy: weighting surface
+//! nodes like interior ones (`V / n` for all) overestimates the bending stiffness of a
+//! plate or beam with `n` nodes through its thickness by `(n + 1) / (n - 1)`.
+//!
 //! Inside the body its forces `-dU/dx` approximate `V_i (mu Lap(u) + (lambda + mu)
 //! grad(div u))`; at the surface they leave the traction free, which collocation does not.
 //! Why not collocation: we first implemented it (per-neighbour coefficients from a local
@@ -30,7 +35,8 @@
 //! [`super::local_shape_matching`]) is factored out first, `eps_i = sym(R_i^T F_i) - I`,
 //! `P_i = R_i sigma_i`, which makes every rigid motion force free.
 //!
-//! Shape information: rest positions, inverse moment matrices (9 floats per node), and for
+//! Shape information: rest positions with the node volume in w, inverse moment matrices (9
+//! floats per node), and for
 //! `corotated` the shape vectors and warm-start rotations of shape matching.
 
 use super::mls::pack_first_pass;

@@ -60,6 +60,7 @@ impl ContinuumConstants {
                 poisson_ratio,
                 volume_stiffness,
                 hourglass,
+                ..
             }) => (young_modulus, poisson_ratio, volume_stiffness, hourglass),
             _ => return None,
         };
@@ -70,6 +71,56 @@ impl ContinuumConstants {
             volume_stiffness: kv as f32,
             hourglass: (alpha * mu) as f32,
         })
+    }
+}
+
+/// Node volumes `V_i` of the first `n` nodes by `rule`, adding up to the enclosed volume;
+/// slots `n..capacity` are 0.
+pub fn node_volumes(
+    rule: crate::scene::NodeVolumes,
+    rest: &[Vec4],
+    nb: &Neighbours,
+    n: usize,
+    ctx: super::BuildContext,
+) -> Vec<f32> {
+    use crate::scene::NodeVolumes;
+    match rule {
+        NodeVolumes::Density => super::point_based::volumes(rest, nb, n, ctx.volume),
+        NodeVolumes::Cell | NodeVolumes::Uniform => {
+            let mut out = vec![0.0f32; rest.len()];
+            for (i, v) in out.iter_mut().enumerate().take(n) {
+                *v = match rule {
+                    NodeVolumes::Cell => ctx.node_volumes[i] as f32,
+                    _ => (ctx.volume / n as f64) as f32,
+                };
+            }
+            out
+        }
+    }
+}
+
+/// `rest` with each node's volume in its w lane.
+pub fn with_volumes(mut rest: Vec<Vec4>, volumes: Vec<f32>) -> Vec<Vec4> {
+    for (p, v) in rest.iter_mut().zip(volumes) {
+        p[3] = v;
+    }
+    rest
+}
+
+/// Volume of node `i` added by the needle, given [`super::ShapeInfo::volume_scale`]: its
+/// scaled density estimate for `density` volumes, the mean node volume otherwise.
+pub fn added_node_volume(
+    rule: crate::scene::NodeVolumes,
+    i: usize,
+    rest: &[Vec4],
+    nb: &Neighbours,
+    scale: f64,
+) -> f32 {
+    match rule {
+        crate::scene::NodeVolumes::Density => {
+            (super::point_based::raw_volume(i, rest, nb) * scale) as f32
+        }
+        _ => scale as f32,
     }
 }
 

@@ -13,7 +13,8 @@ pub mod point_based;
 use crate::math::{Vec4, QUAT_IDENTITY};
 use crate::neighbours::Neighbours;
 use crate::scene::{
-    DebunneParams, Material, PointBasedParams, ShapeMatchingForces, ShapeMatchingParams,
+    DebunneParams, Material, NodeVolumes, PointBasedParams, ShapeMatchingForces,
+    ShapeMatchingParams,
 };
 
 /// Per-model shape information arrays, sized for the full capacity.
@@ -38,26 +39,28 @@ pub enum ShapeInfo {
     /// Debunne meshfree linear elasticity: rest positions, inverse moment matrices, the
     /// per-step first-pass result, plus the shape matching frame when co-rotated.
     DebunneMeshfree {
-        /// Rest positions x0 (w = 0).
+        /// Rest positions x0, w = the node volume V_i in m^3
+        /// ([`crate::scene::NodeVolumes`]).
         rest_position: Vec<Vec4>,
         /// `A_i^-1`, row-major 3x3.
         inverse_moment: Vec<[f32; 9]>,
-        /// Volume of every node, `m / rho`, in m^3.
-        node_volume: f32,
+        /// How the volumes were chosen (and a needle node's volume is chosen).
+        volume_rule: NodeVolumes,
         /// First-pass result of the current step ([`mls::pack_first_pass`]).
         first_pass: Vec<[f32; 12]>,
         /// Shape vectors and warm-start rotations (`corotated = true` only).
         corotation: Option<Corotation>,
     },
-    /// Point based animation: rest positions, inverse moment matrices, volumes and the
+    /// Point based animation: rest positions and volumes, inverse moment matrices and the
     /// per-step first-pass result.
     PointBased {
-        /// Rest positions x0 (w = 0).
+        /// Rest positions x0, w = the node volume V_i in m^3
+        /// ([`crate::scene::NodeVolumes`]).
         rest_position: Vec<Vec4>,
         /// `A_i^-1`, row-major 3x3 (the paper's Table 1).
         inverse_moment: Vec<[f32; 9]>,
-        /// Node volumes V_i in m^3.
-        volume: Vec<f32>,
+        /// How the volumes were chosen (and a needle node's volume is chosen).
+        volume_rule: NodeVolumes,
         /// First-pass result of the current step ([`mls::pack_first_pass`]).
         first_pass: Vec<[f32; 12]>,
     },
@@ -79,6 +82,8 @@ pub struct BuildContext<'a> {
     pub triangles: &'a [[u32; 3]],
     /// Volume enclosed by the surface in m^3.
     pub volume: f64,
+    /// Cell volume of each mesh node in m^3 ([`crate::geometry::NodeCloud::node_volumes`]).
+    pub node_volumes: &'a [f64],
 }
 
 /// The model's arrays as `(name, bytes)` in a fixed order, through `$cast` and `$slice`
@@ -127,12 +132,11 @@ macro_rules! named_arrays {
             ShapeInfo::PointBased {
                 rest_position,
                 inverse_moment,
-                volume,
                 first_pass,
+                ..
             } => vec![
                 ("rest_position", $cast(rest_position.$slice())),
                 ("inverse_moment", $cast(inverse_moment.$slice())),
-                ("volume", $cast(volume.$slice())),
                 ("first_pass", $cast(first_pass.$slice())),
             ],
         }
@@ -183,7 +187,11 @@ impl ShapeInfo {
                         .then(|| vec![[0.0; 4]; capacity]),
                 }
             }
-            Material::DebunneMeshfree(DebunneParams { corotated, .. }) => {
+            Material::DebunneMeshfree(DebunneParams {
+                corotated,
+                node_volumes,
+                ..
+            }) => {
                 let rest_position = rest_position();
                 let corotation = corotated.then(|| Corotation {
                     shape_vector: shape_vectors(&rest_position),
@@ -191,18 +199,24 @@ impl ShapeInfo {
                 });
                 ShapeInfo::DebunneMeshfree {
                     inverse_moment: mls::inverse_moments(&rest_position, nb, n),
-                    rest_position,
-                    node_volume: (ctx.volume / n.max(1) as f64) as f32,
+                    rest_position: mls::with_volumes(
+                        rest_position,
+                        mls::node_volumes(*node_volumes, rest, nb, n, ctx),
+                    ),
+                    volume_rule: *node_volumes,
                     first_pass: vec![[0.0; 12]; capacity],
                     corotation,
                 }
             }
-            Material::PointBased(PointBasedParams { .. }) => {
+            Material::PointBased(PointBasedParams { node_volumes, .. }) => {
                 let rest_position = rest_position();
                 ShapeInfo::PointBased {
                     inverse_moment: mls::inverse_moments(&rest_position, nb, n),
-                    volume: point_based::volumes(&rest_position, nb, n, ctx.volume),
-                    rest_position,
+                    rest_position: mls::with_volumes(
+                        rest_position,
+                        mls::node_volumes(*node_volumes, rest, nb, n, ctx),
+                    ),
+                    volume_rule: *node_volumes,
                     first_pass: vec![[0.0; 12]; capacity],
                 }
             }
@@ -212,10 +226,10 @@ impl ShapeInfo {
     /// The shape information of node `i` that depends on its neighbour row and the rest
     /// positions, as `(array, byte offset, bytes)` in the layout of [`ShapeInfo::bytes`]:
     /// what node addition (paper section 5.1, step 4) writes for every node whose row
-    /// changed. `volume_scale` converts [`point_based::raw_volume`] into a volume (the
-    /// factor the build normalised the volumes with). With `rest_position` the node's rest
-    /// position is included (a new node). Warm-start rotations and per-step arrays are
-    /// not included.
+    /// changed. `volume_scale` is [`ShapeInfo::volume_scale`]. With `rest_position` the
+    /// node's rest position is included (a new node; for the continuum models with its
+    /// volume in w, also rewritten for an existing node when `density` volumes depend on
+    /// the neighbours). Warm-start rotations and per-step arrays are not included.
     pub fn node_rows(
         &self,
         i: usize,
@@ -234,9 +248,16 @@ impl ShapeInfo {
         }
         let r0 = [rest[i][0], rest[i][1], rest[i][2], 0.0];
         let mut out = Vec::new();
-        if rest_position && !matches!(self, ShapeInfo::MassSpring { .. }) {
+        if rest_position && matches!(self, ShapeInfo::LocalShapeMatching { .. }) {
             out.push(row("rest_position", i, &[r0]));
         }
+        // Continuum models: x0 with the node volume in w.
+        let volume_row = |rule: NodeVolumes| {
+            (rest_position || rule == NodeVolumes::Density).then(|| {
+                let v = mls::added_node_volume(rule, i, rest, nb, volume_scale);
+                row("rest_position", i, &[[r0[0], r0[1], r0[2], v]])
+            })
+        };
         match self {
             ShapeInfo::MassSpring { .. } => {
                 out.push(row(
@@ -252,12 +273,17 @@ impl ShapeInfo {
                     &[local_shape_matching::shape_vector(i, rest, nb)],
                 ));
             }
-            ShapeInfo::DebunneMeshfree { corotation, .. } => {
+            ShapeInfo::DebunneMeshfree {
+                corotation,
+                volume_rule,
+                ..
+            } => {
                 out.push(row(
                     "inverse_moment",
                     i,
                     &[mls::inverse_moment(i, rest, nb)],
                 ));
+                out.extend(volume_row(*volume_rule));
                 if corotation.is_some() {
                     out.push(row(
                         "shape_vector",
@@ -266,26 +292,41 @@ impl ShapeInfo {
                     ));
                 }
             }
-            ShapeInfo::PointBased { .. } => {
+            ShapeInfo::PointBased { volume_rule, .. } => {
+                out.extend(volume_row(*volume_rule));
                 out.push(row(
                     "inverse_moment",
                     i,
                     &[mls::inverse_moment(i, rest, nb)],
                 ));
-                let v = (point_based::raw_volume(i, rest, nb) * volume_scale) as f32;
-                out.push(row("volume", i, &[v]));
             }
         }
         out
     }
 
-    /// The factor between node volumes and [`point_based::raw_volume`] over the first `n`
-    /// nodes (1 for the models without per-node volumes).
+    /// What a node added by the needle needs to get its volume, from the first `n` nodes:
+    /// for `density` volumes the factor between the volumes and
+    /// [`point_based::raw_volume`], for `cell` and `uniform` volumes the mean volume (a
+    /// needle node has no cell of its own); 1 for the models without volumes.
     pub fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
         match self {
-            ShapeInfo::PointBased { volume, .. } => {
-                let raw: f64 = (0..n).map(|i| point_based::raw_volume(i, rest, nb)).sum();
-                let vol: f64 = volume[..n].iter().map(|&v| v as f64).sum();
+            ShapeInfo::PointBased {
+                rest_position,
+                volume_rule,
+                ..
+            }
+            | ShapeInfo::DebunneMeshfree {
+                rest_position,
+                volume_rule,
+                ..
+            } => {
+                let vol: f64 = rest_position[..n].iter().map(|p| p[3] as f64).sum();
+                let raw: f64 = match volume_rule {
+                    NodeVolumes::Density => {
+                        (0..n).map(|i| point_based::raw_volume(i, rest, nb)).sum()
+                    }
+                    NodeVolumes::Cell | NodeVolumes::Uniform => n as f64,
+                };
                 if raw > 0.0 {
                     vol / raw
                 } else {
@@ -293,6 +334,18 @@ impl ShapeInfo {
                 }
             }
             _ => 1.0,
+        }
+    }
+
+    /// The node volumes `V_i` of the first `n` nodes (the w lane of the rest positions)
+    /// for the continuum models; `None` for the others.
+    pub fn node_volumes(&self, n: usize) -> Option<Vec<f32>> {
+        match self {
+            ShapeInfo::DebunneMeshfree { rest_position, .. }
+            | ShapeInfo::PointBased { rest_position, .. } => {
+                Some(rest_position[..n].iter().map(|p| p[3]).collect())
+            }
+            _ => None,
         }
     }
 

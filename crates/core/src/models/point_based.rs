@@ -1,5 +1,5 @@
 //! Point based animation (PBA; Mueller, Keiser, Nealen, Pauly, Gross, Alexa 2004, "Point
-//! based animation of elastic, plastic and melting objects", the paper's [MKN*04]).
+//! based animation of elastic, plastic and melting objects", the paper's \[MKN*04\]).
 //!
 //! The moving-least-squares gradient `J_i` of [`super::mls`] gives `F_i = I + J_i`, the
 //! Green-Saint-Venant strain `E = (F^T F - I) / 2` and the linear isotropic stress
@@ -12,12 +12,14 @@
 //!
 //! Green strain is rotation invariant: any rigid motion gives zero force.
 //!
-//! Node volumes (`volume`) come from the density estimate `rho_i = sum_j m_j W_ij`
-//! (section 4.2): with equal masses `V_i = m / rho_i` is proportional to
-//! `l_i^3 / (1 + sum_j w_ij)`, `l_i` the node's farthest neighbour distance (the kernel's
-//! length scale), and the volumes are scaled to add up to the volume enclosed by the
-//! surface (which makes the energy of a uniform strain exact).
-
+//! Node volumes `V_i` (w lane of the rest positions) are the nodes' cells by default
+//! ([`crate::scene::NodeVolumes`]). Mueller 2004 (section 4.2) takes them from the density
+//! estimate `rho_i = sum_j m_j W_ij` (`node_volumes = "density"`): with equal masses
+//! `V_i = m / rho_i` is proportional to `l_i^3 / (1 + sum_j w_ij)`, `l_i` the node's
+//! farthest neighbour distance (the kernel's length scale), scaled so that the volumes add
+//! up to the volume enclosed by the surface. Surface nodes have fewer neighbours and so
+//! too large a volume: the report's cantilever is 38% too stiff at 1025 nodes with it, 4%
+//! with cell volumes.
 use super::mls::{mat_mul, pack_first_pass, ContinuumConstants};
 use crate::math::{cross, sub, Mat3, Vec4};
 use crate::neighbours::Neighbours;
