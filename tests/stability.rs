@@ -1,6 +1,7 @@
 //! The stable time step estimated from the model (`core::stability`) against the
 //! behaviour of the time stepping itself: every model stays bounded just below the
-//! estimate and runs away above it.
+//! estimate and runs away above it. The measured limit by bisection, next to the
+//! estimate, is the stable-dt map of `needlesim report` (`src/report/stable_dt.rs`).
 
 mod common;
 use common::*;
@@ -57,31 +58,6 @@ fn estimated_critical_dt_separates_stable_from_unstable_steps() {
         eprintln!("{name}: critical dt {dt:.3e} s; 0.8x bounded {b}, 1.5x bounded {a}");
         assert!(b, "{name}: unstable at 0.8 x the estimate {dt:e}");
         assert!(!a, "{name}: still bounded at 1.5 x the estimate {dt:e}");
-    }
-}
-
-/// The measured limit by bisection, as a multiple of the estimate (run with
-/// `cargo test --release --test stability -- --ignored --nocapture`).
-#[test]
-#[ignore]
-fn bisect_all() {
-    for (name, material) in all_models() {
-        let damping = if name == "lshm-node" { 20.0 } else { 0.0 };
-        let mut probe = cube(material, 1e-4, damping);
-        let dt = max_eigenvalue(&mut probe, 60).unwrap().critical_dt;
-        let (mut lo, mut hi) = (0.5, 4.0);
-        for _ in 0..8 {
-            let mid = 0.5 * (lo + hi);
-            if bounded(&mut cube(material, mid * dt, damping), 3000) {
-                lo = mid
-            } else {
-                hi = mid
-            }
-        }
-        eprintln!(
-            "{name}: estimate {dt:.3e}, measured limit {:.2}x",
-            0.5 * (lo + hi)
-        );
     }
 }
 
