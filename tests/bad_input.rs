@@ -201,6 +201,23 @@ fn a_closed_obj_is_filled_with_nodes() {
         assert!(l1 < 1.0, "interior node {p:?} outside");
     }
     t.neighbours.check_mutual(t.n_mesh).unwrap();
+    // A continuum model gets the nodes' cells (sub-sampled): they add up to the enclosed
+    // volume, none is negative, and each of the six tips (the surface vertices, whose
+    // cells are thin cones) gets less than the largest interior cell (h^3 = 0.0156).
+    let deb = obj_scene("octa.obj").replace(
+        "model = \"mass_spring\"\nstiffness = 1.0",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
+    );
+    let t = Tissue::from_scene(&Scene::from_toml_str(&deb, dir.path()).unwrap()).unwrap();
+    let v = t.shape.node_volumes(t.n_mesh).unwrap();
+    let total: f64 = v.iter().map(|&x| x as f64).sum();
+    assert!(
+        (total - 4.0 / 3.0).abs() < 1e-5,
+        "cell volumes add up to {total}"
+    );
+    assert!(v.iter().all(|&x| x >= 0.0));
+    let largest = v[6..].iter().cloned().fold(0.0f32, f32::max);
+    assert!(v[..6].iter().all(|&x| x < largest), "{v:?}");
 }
 
 #[test]

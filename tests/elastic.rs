@@ -337,3 +337,41 @@ fn each_model_allocates_only_its_arrays() {
         assert!(t.allocations().iter().all(|a| a.bytes > 0), "{label}");
     }
 }
+
+/// The three node-volume rules of the continuum models on the 648-node cube (9 x 9 x 8):
+/// each adds up to the lattice's volume (f32 sum, 1e-5); `cell` gives an interior node
+/// h^3 and a corner h^3 / 8, `uniform` gives every node V / n, and Mueller's `density`
+/// estimate gives the corner more than an interior node (which is why it makes a beam too
+/// stiff in bending).
+#[test]
+fn node_volume_rules() {
+    for rule in ["cell", "uniform", "density"] {
+        let material = format!(
+            "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nnode_volumes = \"{rule}\""
+        );
+        let t = Tissue::from_scene(&cube_scene(&material, 639, 0.0, [1.0; 3])).unwrap();
+        let n = t.n_mesh;
+        let v = t.shape.node_volumes(n).unwrap();
+        let total: f64 = v.iter().map(|&x| x as f64).sum();
+        assert!(
+            (total / t.volume - 1.0).abs() < 1e-5,
+            "{rule}: {total} vs {}",
+            t.volume
+        );
+        let p = &t.state.positions;
+        let h = (p[1][0] - p[0][0]) as f64;
+        // Node (4, 4, 3) of the 9 x 9 x 8 lattice, x fastest.
+        let (corner, interior) = (v[0] as f64, v[4 + 9 * (4 + 9 * 3)] as f64);
+        match rule {
+            "cell" => {
+                assert!((interior / h.powi(3) - 1.0).abs() < 1e-4, "{interior}");
+                assert!((corner / (h.powi(3) / 8.0) - 1.0).abs() < 1e-4, "{corner}");
+            }
+            "uniform" => assert!(v.iter().all(|&x| x == v[0])),
+            _ => assert!(
+                corner > interior,
+                "{rule}: corner {corner}, interior {interior}"
+            ),
+        }
+    }
+}
