@@ -61,42 +61,43 @@ fn continuum_cantilever_tip_within_15_percent() {
     }
 }
 
-/// The calibration rule `k = C E h` reproduces E in the case it was calibrated on
-/// (2197 nodes) within 1% (the constants are rounded to 4 digits; the relaxation stops at
-/// 1e-3), and is off by less than 30% at 729 nodes (the rule's resolution dependence,
-/// measured +11% to +17%, reported).
+/// The calibration rule `k = C E h` with the bulk C (`needlesim_core::calibration`): in
+/// the stretch case the error of each lattice model falls with resolution (125, 729, 2197
+/// nodes; measured on the dev machine: msm 9.4%, 4.2%, 2.7%; lshm-cluster 36.9%, 15.2%,
+/// 9.4%; lshm-node 86.9%, 36.6%, 23.0%, all too stiff) and the stress converges: it changes
+/// less from 729 to 2197 nodes than from 125 to 729, by more than the factor 2 of a
+/// first-order method (h: 25, 12.5, 8.3 mm). Bounds at 2197 nodes: 4% msm (springs count
+/// by their share of the body), 12% and 30% for the shape matching variants, whose surface
+/// clusters have no such rule.
 #[test]
-fn calibration_rule_reproduces_young_modulus() {
-    for model in [ModelId::Msm, ModelId::LshmNode, ModelId::LshmCluster] {
-        let r = run_case(CaseId::Stretch, model, &spec(2)).unwrap();
-        assert!(
-            r.error < 0.01,
-            "{}: stress error {:.4}",
+fn lattice_models_converge_to_the_calibrated_modulus() {
+    for (model, bound) in [
+        (ModelId::Msm, 0.04),
+        (ModelId::LshmCluster, 0.12),
+        (ModelId::LshmNode, 0.3),
+    ] {
+        let r: Vec<_> = (0..3)
+            .map(|level| run_case(CaseId::Stretch, model, &spec(level)).unwrap())
+            .collect();
+        let msg = format!(
+            "{}: stress {:.2}, {:.2}, {:.2} Pa (errors {:.3}, {:.3}, {:.3})",
             model.label(),
-            r.error
+            r[0].measured,
+            r[1].measured,
+            r[2].measured,
+            r[0].error,
+            r[1].error,
+            r[2].error
         );
-        let coarse = run_case(CaseId::Stretch, model, &spec(1)).unwrap();
-        assert!(
-            coarse.error < 0.3,
-            "{}: stress error {:.3} at {} nodes",
-            model.label(),
-            coarse.error,
-            coarse.nodes
-        );
-        // They converge, to their own limit: the stress changes less from 729 to 2197
-        // nodes than from 125 to 729, by more than the factor 2 of a first-order method
-        // (h: 25, 12.5, 8.3 mm). Measured: msm 166.6, 114.6, 100.0 Pa (changes 52 and
-        // 14.6); lshm-node 180.5, 116.8, 100.0; lshm-cluster 148.1, 111.0, 100.0.
-        let coarsest = run_case(CaseId::Stretch, model, &spec(0)).unwrap();
+        eprintln!("{msg}");
+        assert!(r.iter().all(|x| x.converged), "{msg}");
+        assert!(r[0].error > r[1].error && r[1].error > r[2].error, "{msg}");
+        assert!(r[2].error < bound, "{msg}");
         let (d1, d2) = (
-            (coarse.measured - coarsest.measured).abs(),
-            (r.measured - coarse.measured).abs(),
+            (r[1].measured - r[0].measured).abs(),
+            (r[2].measured - r[1].measured).abs(),
         );
-        assert!(
-            d1 > 2.0 * d2,
-            "{}: stress changes {d1:.2} then {d2:.2} Pa",
-            model.label()
-        );
+        assert!(d1 > 2.0 * d2, "{msg}");
     }
 }
 

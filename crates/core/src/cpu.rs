@@ -171,6 +171,7 @@ impl Backend for CpuBackend {
                 Material::MassSpring(MassSpringParams {
                     stiffness,
                     spring_damping,
+                    ..
                 }),
                 ShapeInfo::MassSpring { rest_length },
             ) => {

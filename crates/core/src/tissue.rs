@@ -6,7 +6,7 @@ use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
 use crate::models::{ArrayInfo, ShapeInfo};
 use crate::neighbours::Neighbours;
-use crate::scene::{Material, Scene, TimeStep, AUTO_DT_SAFETY};
+use crate::scene::{MassSpringParams, Material, Scene, SpringShare, TimeStep, AUTO_DT_SAFETY};
 use crate::state::NodeState;
 
 /// Everything a backend needs to simulate the tissue.
@@ -58,7 +58,19 @@ impl Tissue {
             .into());
         }
         let capacity = n + extra;
-        let neighbours = Neighbours::build(&cloud.positions, k, scene.tissue.weight, capacity);
+        let mut neighbours = Neighbours::build(&cloud.positions, k, scene.tissue.weight, capacity);
+        if let Material::MassSpring(MassSpringParams {
+            spring_share: SpringShare::Cell,
+            ..
+        }) = scene.material
+        {
+            crate::models::mass_spring::apply_cell_shares(
+                &mut neighbours,
+                &cloud.node_volumes,
+                cloud.spacing,
+                n,
+            );
+        }
         let node_mass = scene.tissue.density * cloud.volume / n as f64;
         let mut fixed = vec![false; n];
         for (s, sel) in scene.fixed.iter().enumerate() {

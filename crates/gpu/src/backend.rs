@@ -166,6 +166,7 @@ impl GpuBackend {
             Material::MassSpring(MassSpringParams {
                 stiffness,
                 spring_damping,
+                ..
             }) => {
                 params.stiffness = stiffness as f32;
                 params.spring_damping = spring_damping as f32;

@@ -29,7 +29,7 @@
 use needlesim_core::math::{quat_to_mat, Vec4, QUAT_IDENTITY};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::models::ShapeInfo;
-use needlesim_core::neighbours::{kernel_weight, Neighbours};
+use needlesim_core::neighbours::{kernel_length, kernel_weight, Neighbours};
 use needlesim_core::scene::WeightKernel;
 use needlesim_core::{Backend, NodeField, SimError, Tissue};
 use thiserror::Error;
@@ -102,7 +102,7 @@ pub struct NodeEditor {
     nb: Neighbours,
     shape: ShapeInfo,
     rest: Vec<Vec4>,
-    /// Length scale of every node's kernel (distance of its K-th nearest rest neighbour).
+    /// Length scale of every node's kernel (`kernel_length` of its K slots' rest distances).
     dk: Vec<f64>,
     kernel: WeightKernel,
     volume_scale: f64,
@@ -129,9 +129,11 @@ impl NodeEditor {
                 if i >= n {
                     return 0.0;
                 }
-                (0..k)
-                    .map(|s| dist(r[i], r[nb.index[i * k + s] as usize]))
-                    .fold(0.0, f64::max)
+                kernel_length(
+                    &mut (0..k)
+                        .map(|s| dist(r[i], r[nb.index[i * k + s] as usize]))
+                        .collect::<Vec<_>>(),
+                )
             })
             .collect();
         NodeEditor {
@@ -312,10 +314,12 @@ impl NodeEditor {
             dk: self.dk[i],
         };
         self.rest[i] = x0;
-        let dki = near
-            .iter()
-            .map(|(_, j, _)| dist(self.rest[*j as usize], x0))
-            .fold(0.0, f64::max);
+        let dki = kernel_length(
+            &mut near
+                .iter()
+                .map(|(_, j, _)| dist(self.rest[*j as usize], x0))
+                .collect::<Vec<_>>(),
+        );
         self.dk[i] = dki;
 
         // Step 4: weights and the mutual slot rule.

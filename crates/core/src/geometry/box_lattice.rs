@@ -170,6 +170,7 @@ impl BoxLattice {
             triangles,
             volume,
             node_volumes,
+            spacing: h,
         }
     }
 }

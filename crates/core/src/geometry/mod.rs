@@ -25,6 +25,9 @@ pub struct NodeCloud {
     /// node) in m^3; they add up to `volume`. The continuum models integrate their energy
     /// with these weights.
     pub node_volumes: Vec<f64>,
+    /// Spacing of the lattice the nodes were placed on (or that fills the surface) in
+    /// metres; an interior node's cell is `spacing^3`.
+    pub spacing: f64,
 }
 
 impl NodeCloud {

@@ -56,6 +56,7 @@ pub fn fill_lattice(surface: &Surface, h: f64) -> NodeCloud {
         triangles: surface.triangles.clone(),
         volume: surface.volume,
         node_volumes,
+        spacing: h,
     }
 }
 

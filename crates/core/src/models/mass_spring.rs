@@ -9,10 +9,38 @@
 //! weights the forces sum to zero (momentum is conserved). A pair whose nodes coincide
 //! (`|d| = 0`) has no direction and contributes nothing.
 //!
+//! Spring shares (`spring_share = "cell"`, the default): the weight `w_ij` is the kernel
+//! weight times `max(V_i, V_j) / a^3`, `V` the nodes' cells and `a` the lattice spacing.
+//! On a box lattice that is the fraction of the lattice cells around the spring that lie
+//! inside the body (1 inside, 1/2 in a face, 1/4 along an edge), so the energy of a
+//! uniform strain is the bulk lattice's energy density times the body's volume and the
+//! calibration `k = C E h` does not drift with resolution. Springs of nodes added by the
+//! needle count fully (an added node is inside the body).
+//!
 //! Shape information: `rest_length`, one `f32` per slot.
 
 use crate::math::{dot, norm, sub, Vec4};
 use crate::neighbours::Neighbours;
+
+/// Multiplies the weight of every spring of the first `n` nodes by its share of the body,
+/// `max(V_i, V_j) / spacing^3` ([`crate::scene::SpringShare::Cell`]). Both slots of a
+/// mutual pair get the same bits, so the lists stay mutual.
+pub fn apply_cell_shares(nb: &mut Neighbours, node_volumes: &[f64], spacing: f64, n: usize) {
+    let cell = spacing.powi(3);
+    let k = nb.k;
+    for i in 0..n {
+        for s in 0..k {
+            let slot = i * k + s;
+            let w = nb.weight[slot];
+            if w == 0.0 {
+                continue;
+            }
+            let j = nb.index[slot] as usize;
+            let share = node_volumes[i].max(node_volumes[j]) / cell;
+            nb.weight[slot] = (w as f64 * share) as f32;
+        }
+    }
+}
 
 /// Rest length per neighbour slot (`capacity * K`; 0 for empty slots).
 pub fn rest_lengths(rest: &[Vec4], nb: &Neighbours, n: usize) -> Vec<f32> {
