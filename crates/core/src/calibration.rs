@@ -17,6 +17,7 @@
 //!   from 0.38 to 0.72 over the same range);
 //! - cluster shape matching: +37%, +15%, +9.4%, +4.4%;
 //! - per-node shape matching (the paper's forces): +87%, +37%, +23%, +11%.
+//!
 //! Shape matching clusters at the surface are lopsided and have no share rule yet.
 //! Poisson's ratio is whatever the model gives (measured at 15,625 nodes: about 0.24 for
 //! mass-spring, near 0 for cluster shape matching, outside [0, 0.5] for the per-node
