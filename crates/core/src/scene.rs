@@ -161,9 +161,9 @@ pub enum WeightKernel {
     /// `kernel = "poly6"`: `w = (1 - r^2/h^2)^3` with `h = support * (d(i) + d(j)) / 2`,
     /// where `d` is a node's median distance to its K nearest neighbours
     /// ([`crate::neighbours::kernel_length`]; inside a cubic lattice of spacing `a` with
-    /// K = 16, `sqrt(2) a`, the distance of the farthest of them). A mutual pair farther apart than `h` gets weight 0, like a
-    /// broken pair (with the default `support = 2`, a pair more than twice the median
-    /// neighbour distance apart).
+    /// K = 16, `sqrt(2) a`, the distance of the farthest of them). A mutual pair farther
+    /// apart than `h` gets weight 0, like a broken pair (with the default `support = 2`, a
+    /// pair more than twice the median neighbour distance apart).
     Poly6 {
         /// Support radius in units of the median neighbour distance (default 2).
         support: f64,
