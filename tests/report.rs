@@ -1,5 +1,5 @@
 //! The accuracy report's physics at test sizes: the continuum models against linear
-//! elasticity, the calibration rule of the two models without E, the continuum models'
+//! elasticity, the calibration rule of the two models without E, every converging model's
 //! error falling with resolution, and every extreme case ending stable, degraded or with a typed divergence
 //! error (never a panic, never another error).
 
@@ -16,11 +16,10 @@ fn spec(level: usize) -> RunSpec {
 }
 
 /// DEB and PBA at 2197 nodes (the finest stretch tested here): the end-plate stress is
-/// E eps within 15% and the lateral strain -nu eps within 15% (the tolerance).
-/// Measured (dev machine, full report): stress error 0.07% DEB, 1.4% PBA (its Green strain
-/// at 1% stretch: St Venant-Kirchhoff stress is E (eps + 3/2 eps^2), 1.5% above E eps);
-/// lateral strain 0.07% DEB, 0.7% PBA. With the density-estimated volumes of Mueller 2004
-/// PBA's stress error was 9.0%.
+/// within 15% of E eps (PBA: of the St Venant-Kirchhoff stress, 0.3% above at the 0.2%
+/// stretch) and the lateral strain within 15% of -nu eps (the tolerance). Measured
+/// (dev machine, K = 18): stress error 0.05% DEB, 0.07% PBA; lateral strain 0.03% and
+/// 0.04%. With the density-estimated volumes of Mueller 2004 PBA's stress error was 9.0%.
 #[test]
 fn continuum_models_carry_e_eps_in_the_stretch() {
     for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
@@ -41,40 +40,51 @@ fn continuum_models_carry_e_eps_in_the_stretch() {
     }
 }
 
-/// DEB, co-rotated DEB and PBA cantilever tip deflection under gravity within 15% of
-/// Timoshenko at 1025 nodes (the tolerance; the finest beam tested here). Measured
-/// (dev machine, full report): DEB 4.2% at 496 and 3.2% at 1025 nodes, PBA 3.1% and 2.5%.
-/// With uniform node volumes DEB was 26.7% off at 1025 nodes, with density volumes PBA
-/// 37.8%: surface nodes weighted like interior ones make the beam too stiff in bending.
+/// The models that converge to linear elasticity (all but the paper's per-node shape
+/// matching forces, see below): the cantilever tip error falls over 189, 496 and 1025
+/// nodes ([`CaseId::error_falls`]), and DEB, co-rotated DEB and PBA are within 15% of
+/// Timoshenko at 1025 nodes (the tolerance). Measured (dev machine, K = 18): msm
+/// 37.1%, 20.8%, 12.7%; lshm-cluster 79.5%, 65.5%, 55.2%; DEB 25.2%, 4.0%, 2.2%; PBA
+/// 31.9%, 5.5%, 3.1% (the 189-node beam has 3 nodes across). With K = 16 mass-spring's beam was anisotropic and its error
+/// stopped falling (8.5% at 1025 nodes, 11.9% at 12,221).
 #[test]
-fn continuum_cantilever_tip_within_15_percent() {
-    for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
-        let r = run_case(CaseId::Cantilever, model, &spec(2)).unwrap();
-        assert!(r.converged, "{}: not settled", model.label());
-        assert!(
-            r.error < 0.15,
-            "{}: tip deflection error {:.3} at {} nodes",
-            model.label(),
-            r.error,
-            r.nodes
-        );
+fn cantilever_error_falls_with_resolution() {
+    for model in [
+        ModelId::Msm,
+        ModelId::LshmCluster,
+        ModelId::Deb,
+        ModelId::DebCorotated,
+        ModelId::Pba,
+    ] {
+        let r: Vec<_> = (0..3)
+            .map(|level| run_case(CaseId::Cantilever, model, &spec(level)).unwrap())
+            .collect();
+        let e: Vec<f64> = r.iter().map(|r| r.error).collect();
+        let msg = format!("{}: tip errors {e:.4?}", model.label());
+        eprintln!("{msg}");
+        assert!(r.iter().all(|r| r.converged), "{msg}");
+        assert!(CaseId::Cantilever.error_falls(&e), "{msg}");
+        if !matches!(model, ModelId::Msm | ModelId::LshmCluster) {
+            assert!(e[2] < 0.15, "{msg}");
+        }
     }
 }
 
-/// The calibration rule `k = C E h` with the bulk C (`needlesim_core::calibration`): in
-/// the stretch case the error of each lattice model falls with resolution (125, 729, 2197
-/// nodes; measured on the dev machine: msm 9.4%, 4.2%, 2.7%; lshm-cluster 36.9%, 15.2%,
-/// 9.4%; lshm-node 86.9%, 36.6%, 23.0%, all too stiff) and the stress converges: it changes
-/// less from 729 to 2197 nodes than from 125 to 729, by more than the factor 2 of a
-/// first-order method (h: 25, 12.5, 8.3 mm). Bounds at 2197 nodes: 4% msm (springs count
-/// by their share of the body), 12% and 30% for the shape matching variants, whose surface
-/// clusters have no such rule.
+/// The calibration rule `k = C E h` with the bulk C for K = 18
+/// (`needlesim_core::calibration`): in the stretch case the error of each lattice model
+/// falls with resolution (125, 729, 2197 nodes; measured on the dev machine: msm 9.1%,
+/// 2.5%, 1.3%; lshm-cluster 47.0%, 18.3%, 11.1%; lshm-node 99.1%, 40.1%, 25.0%, all too
+/// stiff) and the stress converges: it changes less from 729 to 2197 nodes than from 125
+/// to 729, by more than the factor 2 of a first-order method (h: 25, 12.5, 8.3 mm). Bounds
+/// at 2197 nodes, about 1.3 times the measured: 2% msm (springs count by their share of
+/// the body), 15% and 33% for the shape matching variants, whose surface clusters have no
+/// such rule.
 #[test]
 fn lattice_models_converge_to_the_calibrated_modulus() {
     for (model, bound) in [
-        (ModelId::Msm, 0.04),
-        (ModelId::LshmCluster, 0.12),
-        (ModelId::LshmNode, 0.3),
+        (ModelId::Msm, 0.02),
+        (ModelId::LshmCluster, 0.15),
+        (ModelId::LshmNode, 0.33),
     ] {
         let r: Vec<_> = (0..3)
             .map(|level| run_case(CaseId::Stretch, model, &spec(level)).unwrap())
@@ -101,39 +111,52 @@ fn lattice_models_converge_to_the_calibrated_modulus() {
     }
 }
 
-/// The continuum models converge: from 729 to 2197 nodes the displacement-field error
-/// (against scikit-fem) falls for all three, and the punch force error for the two linear
-/// ones. Measured (dev machine, full report): DEB force 6.5% -> 4.0% -> 2.9%, field 3.5% ->
-/// 2.0% -> 1.3% at 729, 2197, 4913 nodes; co-rotated DEB force 5.6% -> 3.0% -> 1.8%. PBA's
-/// Green strain is geometrically nonlinear, and at the 2 mm punch (2% nominal strain) its
-/// force falls below the linear reference as the discretisation error shrinks (1.1%, 1.3%,
-/// 2.4% off; field 5.6% -> 3.9% -> 3.1%). So PBA's force is held to 5% instead of a
-/// falling error. Mass-spring and shape matching converge to their own material (Poisson
-/// ratio about 0.24 and 0, lattice anisotropy with K = 16): their punch force error passes
-/// its minimum near 729 nodes and grows towards that material's error (msm 0.9% -> 8.9%
-/// from 729 to 4913 nodes), which the report shows; their convergence to the calibrated
-/// modulus is tested above.
+/// Indentation against scikit-fem over 125, 729 and 2197 nodes: the punch force error and
+/// the displacement-field error fall for every model that converges to linear elasticity.
+/// Measured (dev machine, K = 18, 0.5 mm punch), force: msm 21.1%, 8.9%, 4.2%;
+/// lshm-cluster 55.9%, 21.8%, 13.8%; DEB 15.8%, 6.2%, 3.8%; co-rotated DEB 15.6%, 6.0%,
+/// 3.5%; PBA 13.7%, 3.7%, 1.5%. With K = 16 and a 2 mm punch the lattice models' error
+/// rose after 729 nodes (anisotropy) and PBA's after 729 (its Green strain at 2% nominal
+/// strain is not the linear reference).
+///
+/// The paper's per-node shape matching forces are not in the list: they are not the
+/// gradient of an energy, their Poisson ratio is outside [0, 0.5] and their punch force
+/// error does not fall (194%, 159%, 154%, 157%, 160%, 163% from 125 to 15,625 nodes); the
+/// report shows them, `forces = "cluster"` is the variant that converges.
 #[test]
-fn continuum_error_falls_with_resolution() {
-    for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
-        let a = run_case(CaseId::Indentation, model, &spec(1)).unwrap();
-        let b = run_case(CaseId::Indentation, model, &spec(2)).unwrap();
+fn indentation_error_falls_with_resolution() {
+    for model in [
+        ModelId::Msm,
+        ModelId::LshmCluster,
+        ModelId::Deb,
+        ModelId::DebCorotated,
+        ModelId::Pba,
+    ] {
+        let r: Vec<_> = (0..3)
+            .map(|level| run_case(CaseId::Indentation, model, &spec(level)).unwrap())
+            .collect();
+        let force: Vec<f64> = r.iter().map(|r| r.error).collect();
+        let field: Vec<f64> = r.iter().map(|r| r.secondary).collect();
         let msg = format!(
-            "{}: force error {:.3} -> {:.3}, field {:.3} -> {:.3}",
-            model.label(),
-            a.error,
-            b.error,
-            a.secondary,
-            b.secondary
+            "{}: force errors {force:.4?}, field errors {field:.4?}",
+            model.label()
         );
         eprintln!("{msg}");
-        assert!(b.secondary < a.secondary, "{msg}");
-        if model == ModelId::Pba {
-            assert!(a.error < 0.05 && b.error < 0.05, "{msg}");
-        } else {
-            assert!(b.error < a.error, "{msg}");
-        }
+        assert!(r.iter().all(|r| r.converged), "{msg}");
+        assert!(CaseId::Indentation.error_falls(&force), "{msg}");
+        assert!(CaseId::Indentation.error_falls(&field), "{msg}");
     }
+}
+
+/// The convergence rule of the report: falling, or within the reference's accuracy.
+#[test]
+fn error_falls_rule() {
+    let c = CaseId::Indentation;
+    assert!(c.error_falls(&[0.2, 0.1, 0.05]));
+    assert!(!c.error_falls(&[0.2, 0.1, 0.12]));
+    assert!(c.error_falls(&[0.2, 0.004, 0.006]));
+    assert!(!c.error_falls(&[0.2, 0.004, 0.02]));
+    assert!(!c.error_falls(&[0.2, f64::NAN]));
 }
 
 /// Every extreme case for every model ends stable, degraded or stopped by the divergence

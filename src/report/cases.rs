@@ -10,7 +10,7 @@
 //! - stretch: a free cube stretched by eps along z between frictionless end plates
 //!   (rollers); the stress on the end plate against `E eps` and the lateral strain against
 //!   `-nu eps`;
-//! - indentation: a bonded flat square punch (5 x 5 cm) pressed 2 mm into the top of a
+//! - indentation: a bonded flat square punch (5 x 5 cm) pressed 0.5 mm into the top of a
 //!   10 cm cube with a fixed bottom; the punch force and the displacement field against a
 //!   converged quadratic-tetrahedron solution from scikit-fem (`scripts/fem_indentation.py`,
 //!   data in `reference/`). The issue asked for the needle tip pressed into the surface;
@@ -49,12 +49,18 @@ pub const BEAM_LENGTH: f64 = 0.2;
 pub const BEAM_DEFLECTION: f64 = 0.002;
 /// Cube side of the stretch and indentation cases, m.
 pub const CUBE: f64 = 0.1;
-/// Stretch of the stretch case.
-pub const STRETCH: f64 = 0.01;
+/// Stretch of the stretch case (small: a geometrically nonlinear model's nominal stress
+/// differs from linear theory by about `1.5 STRETCH`, 1.5% at a 1% stretch).
+pub const STRETCH: f64 = 0.002;
 /// Half the side of the square punch, m.
 pub const PUNCH_HALF_WIDTH: f64 = 0.025;
-/// Punch depth, m.
-pub const PUNCH_DEPTH: f64 = 0.002;
+/// Punch depth, m (2% of the cube at 2 mm made point based animation's Green strain
+/// differ from the linear reference by a few percent).
+pub const PUNCH_DEPTH: f64 = 0.0005;
+/// Neighbours per node in every case: 18 completes the first two shells of the cubic
+/// lattice (16 drops one face-diagonal pair at every node and makes the lattice models
+/// anisotropic).
+pub const NEIGHBOURS: usize = 18;
 
 /// The model variants the report compares.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,21 +117,22 @@ impl ModelId {
     /// The `[material]` table for Young's modulus `young` on a lattice of spacing `h`
     /// (mass-spring and shape matching take their stiffness from the calibration rule).
     pub fn material(self, young: f64, h: f64) -> String {
+        let cal = calibration::calibration(NEIGHBOURS).expect("the report's K is calibrated");
         let elastic = |model: &str, extra: &str| {
             format!("model = \"{model}\"\nyoung_modulus = {young:e}\npoisson_ratio = {POISSON}\n{extra}")
         };
         match self {
             ModelId::Msm => format!(
                 "model = \"mass_spring\"\nstiffness = {:e}\nspring_damping = 0.0\n",
-                calibration::mass_spring_stiffness(young, h)
+                cal.mass_spring * young * h
             ),
             ModelId::LshmNode => format!(
                 "model = \"local_shape_matching\"\nforces = \"node\"\nstiffness = {:e}\n",
-                calibration::shape_matching_stiffness(young, h, false)
+                cal.shape_matching_node * young * h
             ),
             ModelId::LshmCluster => format!(
                 "model = \"local_shape_matching\"\nforces = \"cluster\"\nstiffness = {:e}\n",
-                calibration::shape_matching_stiffness(young, h, true)
+                cal.shape_matching_cluster * young * h
             ),
             ModelId::Deb => elastic("debunne_meshfree", ""),
             ModelId::DebCorotated => elastic("debunne_meshfree", "corotated = true"),
@@ -139,7 +146,9 @@ impl ModelId {
     pub fn damping_floor(self, young: f64, h: f64) -> f64 {
         match self {
             ModelId::LshmNode => {
-                let k = calibration::shape_matching_stiffness(young, h, false);
+                let cal =
+                    calibration::calibration(NEIGHBOURS).expect("the report's K is calibrated");
+                let k = cal.shape_matching_node * young * h;
                 0.2 * (k / (DENSITY * h * h * h)).sqrt()
             }
             _ => 0.0,
@@ -184,9 +193,31 @@ impl CaseId {
         match self {
             CaseId::Cantilever => "tip deflection vs Timoshenko",
             CaseId::Frequency => "first bending period vs Euler-Bernoulli",
-            CaseId::Stretch => "end-plate stress vs E eps",
+            CaseId::Stretch => "end-plate stress vs E eps (St Venant-Kirchhoff for PBA)",
             CaseId::Indentation => "punch force vs scikit-fem P2",
         }
+    }
+
+    /// How far the reference itself may be from the exact answer of the model's continuum,
+    /// as a relative error: errors below it say nothing about convergence. Stretch: the
+    /// equilibrium test's [`REL_TOL`]. Cantilever: 1% (a 3D clamp also holds the Poisson
+    /// contraction that Timoshenko's clamp leaves free). Frequency: 1% (Euler-Bernoulli's
+    /// first frequency is about 0.6% above Timoshenko's for this 10:1 beam). Indentation:
+    /// 1% (the FEM reference's Richardson extrapolation, `reference/indentation_fem.md`).
+    pub fn reference_accuracy(self) -> f64 {
+        match self {
+            CaseId::Stretch => REL_TOL,
+            CaseId::Cantilever | CaseId::Frequency | CaseId::Indentation => 0.01,
+        }
+    }
+
+    /// Whether `errors` (coarsest first) fall with resolution: each error is below the one
+    /// before it, or both are within [`Self::reference_accuracy`]. Non-finite errors (no
+    /// result) never fall.
+    pub fn error_falls(self, errors: &[f64]) -> bool {
+        let floor = self.reference_accuracy();
+        errors.iter().all(|e| e.is_finite())
+            && errors.windows(2).all(|w| w[1] < w[0] || w[1].max(w[0]) < floor)
     }
 
     /// Lattice points per side for resolution level `level` (0 = coarsest): the beam's
@@ -279,7 +310,7 @@ struct Setup {
 
 fn scene(max: [f64; 3], h: f64, material: &str, gravity: f64, damping: f64, fixed: &str) -> Scene {
     let text = format!(
-        "[tissue]\ndensity = {DENSITY}\nneighbours = 16\n\
+        "[tissue]\ndensity = {DENSITY}\nneighbours = {NEIGHBOURS}\n\
          geometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{}, {}, {}], spacing = {h:e} }}\n\
          [material]\n{material}\n[physics]\ndt = 1e-3\ngravity = [0.0, {:e}, 0.0]\ndamping = {damping:e}\nmax_speed = 100.0\n{fixed}",
         max[0], max[1], max[2], -gravity
@@ -617,6 +648,23 @@ fn prepare_stretch(t: &mut Tissue, rest: &[[f64; 3]], _: f64) {
     }
 }
 
+/// The stretch case's end-plate stress (nominal, Pa) and lateral-to-axial strain ratio.
+/// Linear elasticity: `E eps` and nu. Point based animation's energy is St Venant-Kirchhoff
+/// (Green strain E_G, `S = lambda tr(E_G) I + 2 mu E_G`): under uniaxial stress the lateral
+/// Green strain is `-nu` times the axial one, `E_G,zz = ((1 + eps)^2 - 1) / 2`, and the
+/// nominal stress is `(1 + eps) E E_G,zz`, which exceeds `E eps` by `1.5 eps` (0.3% here).
+pub fn stretch_reference(model: ModelId) -> (f64, f64) {
+    let eps = STRETCH;
+    match model {
+        ModelId::Pba => {
+            let green = 0.5 * ((1.0 + eps) * (1.0 + eps) - 1.0);
+            let lateral = (1.0 - 2.0 * POISSON * green).sqrt() - 1.0;
+            ((1.0 + eps) * YOUNG * green, -lateral / eps)
+        }
+        _ => (YOUNG * eps, POISSON),
+    }
+}
+
 fn stretch(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
     let s = setup(CaseId::Stretch, model, spec)?;
     let dt = s.dt;
@@ -653,31 +701,26 @@ fn stretch(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
         b.write(NodeField::Velocity, 0, &vel)?;
         Ok(())
     };
-    let rest = &s.rest;
-    let run = relax(
-        b.as_mut(),
-        dt,
-        cube_omega(false),
-        |b| {
-            let p = read_all(b, NodeField::Position)?;
-            Ok(-0.5 * (fitted_strain(&p, rest, 0) + fitted_strain(&p, rest, 1)) / STRETCH)
-        },
-        Some(&mut rollers),
-    )?;
+    // The end-plate stress settles (the lateral strain ratio may settle near 0, where a
+    // relative test never passes).
+    let stress = |b: &mut dyn Backend| -> Result<f64, ReportError> {
+        b.compute_forces();
+        let mut f = vec![[0.0f32; 4]; top.len()];
+        b.read_nodes(NodeField::Force, &top, &mut f)?;
+        Ok(-f.iter().map(|f| f[2] as f64).sum::<f64>() / (CUBE * CUBE))
+    };
+    let run = relax(b.as_mut(), dt, cube_omega(false), stress, Some(&mut rollers))?;
     let p = read_all(b.as_mut(), NodeField::Position)?;
-    let nu = -0.5 * (fitted_strain(&p, rest, 0) + fitted_strain(&p, rest, 1)) / STRETCH;
-    b.compute_forces();
-    let mut f = vec![[0.0f32; 4]; top.len()];
-    b.read_nodes(NodeField::Force, &top, &mut f)?;
-    let stress = -f.iter().map(|f| f[2] as f64).sum::<f64>() / (CUBE * CUBE);
-    let secondary = (nu / POISSON - 1.0).abs();
+    let nu = -0.5 * (fitted_strain(&p, &s.rest, 0) + fitted_strain(&p, &s.rest, 1)) / STRETCH;
+    let (reference, nu_reference) = stretch_reference(model);
+    let secondary = (nu / nu_reference - 1.0).abs();
     Ok(result(
         CaseId::Stretch,
         model,
         &s,
         spec,
-        (stress, run.1, run.2, run.3),
-        YOUNG * STRETCH,
+        run,
+        reference,
         secondary,
     ))
 }

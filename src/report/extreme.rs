@@ -8,7 +8,7 @@
 //! `r < 2%`, degraded otherwise (for example an inverted cube that stays inverted). Needle
 //! cases use the paper's experiment (20 cm cube, needle along +x at 5 cm/s).
 
-use super::cases::{ModelId, ReportError, CUBE, YOUNG};
+use super::cases::{ModelId, ReportError, CUBE, NEIGHBOURS, YOUNG};
 use crate::runner::make_backend;
 use needlesim_core::math::{quat_to_mat, Mat3};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
@@ -156,7 +156,7 @@ fn cube_text(model: ModelId, side: usize, scale: f64, dt: &str, stretch: f64) ->
     let h = CUBE / (side - 1) as f64;
     let young = YOUNG * scale;
     format!(
-        "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{CUBE}, {CUBE}, {CUBE}], spacing = {h:e} }}\n\
+        "[tissue]\nneighbours = {NEIGHBOURS}\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{CUBE}, {CUBE}, {CUBE}], spacing = {h:e} }}\n\
          [material]\n{}\n[physics]\ndt = {dt}\ndamping = {:e}\ncheck_every = 50\n[initial]\nstretch = [{stretch}, 1.0, 1.0]\n",
         model.material(young, h),
         10.0 + model.damping_floor(young, h)
@@ -271,7 +271,7 @@ fn tissue_case(
 fn paper_text(model: ModelId, h: f64) -> String {
     let young = YOUNG;
     format!(
-        "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2], spacing = {h:e} }}\n\
+        "[tissue]\nneighbours = {NEIGHBOURS}\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2], spacing = {h:e} }}\n\
          [material]\n{}\n[physics]\ndt = 1e-3\ndamping = {:e}\ncheck_every = 50\n\
          [[fixed]]\naxis = \"x\"\nabove = 0.199\n\
          [needle]\nbase = [-0.22, 0.1013, 0.0987]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.2\n\

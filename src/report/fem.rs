@@ -1,21 +1,24 @@
 //! The indentation case's reference solution: a converged quadratic-tetrahedron solution
 //! computed with scikit-fem by `scripts/fem_indentation.py` (see
 //! `reference/indentation_fem.md`), shipped as the punch force and the displacement on a
-//! 17 x 17 x 17 grid over the cube, interpolated trilinearly.
+//! 17 x 17 x 17 grid over the cube, interpolated trilinearly. The solution is linear, so
+//! force and displacements are scaled from the reference depth (2 mm) to [`PUNCH_DEPTH`].
 
-use super::cases::{ReportError, CUBE};
+use super::cases::{ReportError, CUBE, PUNCH_DEPTH};
 use std::sync::OnceLock;
 
 const CSV: &str = include_str!("../../reference/indentation_fem.csv");
 const MD: &str = include_str!("../../reference/indentation_fem.md");
 const POINTS: usize = 17;
+/// Punch depth of the shipped solution, m.
+const REFERENCE_DEPTH: f64 = 0.002;
 
 /// The reference solution.
 #[derive(Debug)]
 pub struct Indentation {
-    /// Punch force, N.
+    /// Punch force at [`PUNCH_DEPTH`], N.
     pub force: f64,
-    /// Displacements, x outermost, z innermost.
+    /// Displacements at [`PUNCH_DEPTH`], x outermost, z innermost.
     u: Vec<[f64; 3]>,
 }
 
@@ -62,6 +65,7 @@ fn parse() -> Result<Indentation, String> {
     if lines.next().map(str::trim) != Some("x,y,z,ux,uy,uz") {
         return Err("indentation_fem.csv: header is not x,y,z,ux,uy,uz".into());
     }
+    let scale = PUNCH_DEPTH / REFERENCE_DEPTH;
     let h = CUBE / (POINTS - 1) as f64;
     let mut u = Vec::with_capacity(POINTS.pow(3));
     for (row, line) in lines.filter(|l| !l.trim().is_empty()).enumerate() {
@@ -82,7 +86,7 @@ fn parse() -> Result<Indentation, String> {
                 row + 2
             ));
         }
-        u.push([v[3], v[4], v[5]]);
+        u.push([scale * v[3], scale * v[4], scale * v[5]]);
     }
     if u.len() != POINTS.pow(3) {
         return Err(format!(
@@ -91,7 +95,10 @@ fn parse() -> Result<Indentation, String> {
             POINTS.pow(3)
         ));
     }
-    Ok(Indentation { force, u })
+    Ok(Indentation {
+        force: scale * force,
+        u,
+    })
 }
 
 /// The parsed reference (parsed once).

@@ -453,12 +453,77 @@ fn plots(out: &Path, s: &ReportSummary) -> Result<(), ReportError> {
     )
 }
 
+/// The errors of `model` in `case` from coarsest to finest (frequency: at the smallest step
+/// fraction run).
+pub fn errors_by_resolution(s: &ReportSummary, case: CaseId, model: ModelId) -> Vec<f64> {
+    let runs: Vec<&CaseResult> = s
+        .accuracy
+        .iter()
+        .filter(|r| r.case == case && r.model == model)
+        .collect();
+    let fraction = runs
+        .iter()
+        .map(|r| r.dt_fraction)
+        .fold(f64::INFINITY, f64::min);
+    let mut runs: Vec<&CaseResult> = runs
+        .into_iter()
+        .filter(|r| r.dt_fraction == fraction)
+        .collect();
+    runs.sort_by_key(|r| r.nodes);
+    runs.iter().map(|r| r.error).collect()
+}
+
+fn convergence_table(md: &mut String, s: &ReportSummary) {
+    writeln!(md, "## Does the error fall with resolution?\n").unwrap();
+    writeln!(
+        md,
+        "Errors from the coarsest to the finest resolution (frequency: at the smaller step fraction). \
+         `falls`: each error is below the one before, or both are below the reference's own accuracy \
+         (stretch {:.1}%, other cases {:.0}%; `CaseId::reference_accuracy`).\n",
+        100.0 * CaseId::Stretch.reference_accuracy(),
+        100.0 * CaseId::Indentation.reference_accuracy()
+    )
+    .unwrap();
+    writeln!(md, "| case | model | errors, % | falls |").unwrap();
+    writeln!(md, "|---|---|---|:---:|").unwrap();
+    for case in CaseId::ALL {
+        for model in ModelId::ALL {
+            let e = errors_by_resolution(s, case, model);
+            if e.is_empty() {
+                continue;
+            }
+            let list: Vec<String> = e
+                .iter()
+                .map(|e| {
+                    if e.is_finite() {
+                        format!("{:.2}", 100.0 * e)
+                    } else {
+                        "n/a".into()
+                    }
+                })
+                .collect();
+            writeln!(
+                md,
+                "| {} | {} | {} | {} |",
+                case.label(),
+                model.label(),
+                list.join(", "),
+                if case.error_falls(&e) { "yes" } else { "no" }
+            )
+            .unwrap();
+        }
+    }
+    writeln!(md).unwrap();
+}
+
 fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
     let mut md = String::new();
     let threads = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1);
     writeln!(md, "# needlesim accuracy and stability report\n").unwrap();
+    let cal = needlesim_core::calibration::calibration(cases::NEIGHBOURS)
+        .expect("the report's K is calibrated");
     writeln!(
         md,
         "Size: {:?}. Run time {:.0} s on this machine ({threads} CPU threads). Produced by `needlesim report{}`.\n",
@@ -470,13 +535,16 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
     writeln!(
         md,
         "Material of every reference case: E = {} Pa, nu = {}, rho = {} kg/m^3. Mass-spring and shape matching \
-         take their stiffness from E by `k = C E h` (`needlesim_core::calibration`: C = {} msm, {} lshm-node, {} lshm-cluster).\n",
+         take their stiffness from E by `k = C E h` (`needlesim_core::calibration`, K = {}: C = {} msm, {} lshm-node, {} lshm-cluster). \
+         Every case uses K = {} neighbours.\n",
         cases::YOUNG,
         cases::POISSON,
         cases::DENSITY,
-        needlesim_core::calibration::MASS_SPRING_C,
-        needlesim_core::calibration::SHAPE_MATCHING_NODE_C,
-        needlesim_core::calibration::SHAPE_MATCHING_CLUSTER_C
+        cal.neighbours,
+        cal.mass_spring,
+        cal.shape_matching_node,
+        cal.shape_matching_cluster,
+        cases::NEIGHBOURS
     )
     .unwrap();
     writeln!(
@@ -489,9 +557,9 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
     writeln!(md, "|---|---:|---:|").unwrap();
     for r in s.accuracy.iter().filter(|r| r.case == CaseId::Stretch) {
         let c = match r.model {
-            ModelId::Msm => needlesim_core::calibration::MASS_SPRING_C,
-            ModelId::LshmNode => needlesim_core::calibration::SHAPE_MATCHING_NODE_C,
-            ModelId::LshmCluster => needlesim_core::calibration::SHAPE_MATCHING_CLUSTER_C,
+            ModelId::Msm => cal.mass_spring,
+            ModelId::LshmNode => cal.shape_matching_node,
+            ModelId::LshmCluster => cal.shape_matching_cluster,
             _ => continue,
         };
         writeln!(
@@ -504,6 +572,7 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
         .unwrap();
     }
     writeln!(md).unwrap();
+    convergence_table(&mut md, s);
     writeln!(md, "## Error against resolution\n").unwrap();
     writeln!(
         md,

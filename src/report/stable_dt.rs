@@ -7,7 +7,7 @@
 //! no free node reaches 100 times the speed the perturbation starts at the highest
 //! frequency, `1e-4 m * sqrt(lambda_max)`.
 
-use super::cases::{ModelId, ReportError, CUBE, YOUNG};
+use super::cases::{ModelId, ReportError, CUBE, NEIGHBOURS, YOUNG};
 use needlesim_core::backend::check_bounded;
 use needlesim_core::stability::max_eigenvalue;
 use needlesim_core::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
@@ -34,7 +34,7 @@ fn cube(model: ModelId, scale: f64, side: usize, dt: f64) -> Result<CpuBackend, 
     let h = CUBE / (side - 1) as f64;
     let young = YOUNG * scale;
     let text = format!(
-        "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{CUBE}, {CUBE}, {CUBE}], spacing = {h:e} }}\n\
+        "[tissue]\nneighbours = {NEIGHBOURS}\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{CUBE}, {CUBE}, {CUBE}], spacing = {h:e} }}\n\
          [material]\n{}\n[physics]\ndt = {dt:e}\ndamping = {:e}\n",
         model.material(young, h),
         model.damping_floor(young, h)

@@ -136,7 +136,7 @@ impl Neighbours {
 /// A node's kernel length from the distances to its K nearest nodes (any order; sorted in
 /// place): the distance of the `ceil(K/2)`-th nearest, the median.
 ///
-/// In the interior of a cubic lattice of spacing h with K = 16 this is `sqrt(2) h`, the
+/// In the interior of a cubic lattice of spacing h with K = 16 or 18 this is `sqrt(2) h`, the
 /// same as the K-th distance. At a free surface the K nearest reach deeper into the body
 /// (a face node has 13 nodes within `sqrt(2) h`, an edge node 9), so the K-th distance
 /// grows to `sqrt(3) h` or `2 h` and gave surface pairs wider kernels, larger weights and a

@@ -9,7 +9,7 @@
 //! ```toml
 //! [tissue]
 //! density = 1000.0
-//! neighbours = 16
+//! neighbours = 18
 //! geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 639 }
 //!
 //! [material]
@@ -94,7 +94,10 @@ pub struct Tissue {
     /// nodes.
     #[serde(default = "default_density")]
     pub density: f64,
-    /// Neighbour slots per node (K).
+    /// Neighbour slots per node (K). Default 18: the first two shells of a cubic lattice
+    /// (6 face neighbours, 12 face diagonals). The paper's 16 cuts the second shell, and
+    /// as every node keeps the same 10 diagonals the lattice models become anisotropic
+    /// ([`crate::calibration`]).
     #[serde(default = "default_neighbours")]
     pub neighbours: usize,
     /// Weight kernel of a neighbour pair.
@@ -106,7 +109,7 @@ fn default_density() -> f64 {
     1000.0
 }
 fn default_neighbours() -> usize {
-    16
+    18
 }
 
 /// The source of the tissue nodes, chosen by the key `kind`.
@@ -161,7 +164,7 @@ pub enum WeightKernel {
     /// `kernel = "poly6"`: `w = (1 - r^2/h^2)^3` with `h = support * (d(i) + d(j)) / 2`,
     /// where `d` is a node's median distance to its K nearest neighbours
     /// ([`crate::neighbours::kernel_length`]; inside a cubic lattice of spacing `a` with
-    /// K = 16, `sqrt(2) a`, the distance of the farthest of them). A mutual pair farther
+    /// K = 16 or 18, `sqrt(2) a`). A mutual pair farther
     /// apart than `h` gets weight 0, like a broken pair (with the default `support = 2`, a
     /// pair more than twice the median neighbour distance apart).
     Poly6 {
