@@ -135,7 +135,7 @@ fn range_writes_round_trip() {
         ]);
         assert!(d <= 1e-5 * norm3(fc[5]).max(1e-9), "node {i}: {d:e}");
     }
-    assert_eq!(k, 16);
+    assert_eq!(k, scene.tissue.neighbours);
 }
 
 /// A scene wider than one dispatch dimension: capping x at 2 workgroups makes the 639-node

@@ -217,7 +217,9 @@ impl CaseId {
     pub fn error_falls(self, errors: &[f64]) -> bool {
         let floor = self.reference_accuracy();
         errors.iter().all(|e| e.is_finite())
-            && errors.windows(2).all(|w| w[1] < w[0] || w[1].max(w[0]) < floor)
+            && errors
+                .windows(2)
+                .all(|w| w[1] < w[0] || w[1].max(w[0]) < floor)
     }
 
     /// Lattice points per side for resolution level `level` (0 = coarsest): the beam's
@@ -709,7 +711,13 @@ fn stretch(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
         b.read_nodes(NodeField::Force, &top, &mut f)?;
         Ok(-f.iter().map(|f| f[2] as f64).sum::<f64>() / (CUBE * CUBE))
     };
-    let run = relax(b.as_mut(), dt, cube_omega(false), stress, Some(&mut rollers))?;
+    let run = relax(
+        b.as_mut(),
+        dt,
+        cube_omega(false),
+        stress,
+        Some(&mut rollers),
+    )?;
     let p = read_all(b.as_mut(), NodeField::Position)?;
     let nu = -0.5 * (fitted_strain(&p, &s.rest, 0) + fitted_strain(&p, &s.rest, 1)) / STRETCH;
     let (reference, nu_reference) = stretch_reference(model);
