@@ -40,29 +40,44 @@ fn continuum_models_carry_e_eps_in_the_stretch() {
     }
 }
 
+/// Every model variant but the paper's per-node shape matching forces.
+const CONVERGING: [ModelId; 5] = [
+    ModelId::Msm,
+    ModelId::LshmCluster,
+    ModelId::Deb,
+    ModelId::DebCorotated,
+    ModelId::Pba,
+];
+
+/// `case` for `model` at the three coarsest levels; every run must settle.
+fn three_levels(case: CaseId, model: ModelId) -> Vec<needlesim::report::cases::CaseResult> {
+    let r: Vec<_> = (0..3)
+        .map(|level| run_case(case, model, &spec(level)).unwrap())
+        .collect();
+    assert!(
+        r.iter().all(|r| r.converged),
+        "{} / {}: a run did not settle",
+        case.label(),
+        model.label()
+    );
+    r
+}
+
 /// The models that converge to linear elasticity (all but the paper's per-node shape
 /// matching forces, see below): the cantilever tip error falls over 189, 496 and 1025
 /// nodes ([`CaseId::error_falls`]), and DEB, co-rotated DEB and PBA are within 15% of
 /// Timoshenko at 1025 nodes (the tolerance). Measured (dev machine, K = 18): msm
 /// 37.1%, 20.8%, 12.7%; lshm-cluster 79.5%, 65.5%, 55.2%; DEB 25.2%, 4.0%, 2.2%; PBA
-/// 31.9%, 5.5%, 3.1% (the 189-node beam has 3 nodes across). With K = 16 mass-spring's beam was anisotropic and its error
-/// stopped falling (8.5% at 1025 nodes, 11.9% at 12,221).
+/// 31.9%, 5.5%, 3.1% (the 189-node beam has 3 nodes across). With K = 16 mass-spring's
+/// beam was anisotropic and its error stopped falling (8.5% at 1025 nodes, 11.9% at
+/// 12,221).
 #[test]
 fn cantilever_error_falls_with_resolution() {
-    for model in [
-        ModelId::Msm,
-        ModelId::LshmCluster,
-        ModelId::Deb,
-        ModelId::DebCorotated,
-        ModelId::Pba,
-    ] {
-        let r: Vec<_> = (0..3)
-            .map(|level| run_case(CaseId::Cantilever, model, &spec(level)).unwrap())
-            .collect();
+    for model in CONVERGING {
+        let r = three_levels(CaseId::Cantilever, model);
         let e: Vec<f64> = r.iter().map(|r| r.error).collect();
         let msg = format!("{}: tip errors {e:.4?}", model.label());
         eprintln!("{msg}");
-        assert!(r.iter().all(|r| r.converged), "{msg}");
         assert!(CaseId::Cantilever.error_falls(&e), "{msg}");
         if !matches!(model, ModelId::Msm | ModelId::LshmCluster) {
             assert!(e[2] < 0.15, "{msg}");
@@ -125,16 +140,8 @@ fn lattice_models_converge_to_the_calibrated_modulus() {
 /// report shows them, `forces = "cluster"` is the variant that converges.
 #[test]
 fn indentation_error_falls_with_resolution() {
-    for model in [
-        ModelId::Msm,
-        ModelId::LshmCluster,
-        ModelId::Deb,
-        ModelId::DebCorotated,
-        ModelId::Pba,
-    ] {
-        let r: Vec<_> = (0..3)
-            .map(|level| run_case(CaseId::Indentation, model, &spec(level)).unwrap())
-            .collect();
+    for model in CONVERGING {
+        let r = three_levels(CaseId::Indentation, model);
         let force: Vec<f64> = r.iter().map(|r| r.error).collect();
         let field: Vec<f64> = r.iter().map(|r| r.secondary).collect();
         let msg = format!(
@@ -142,7 +149,6 @@ fn indentation_error_falls_with_resolution() {
             model.label()
         );
         eprintln!("{msg}");
-        assert!(r.iter().all(|r| r.converged), "{msg}");
         assert!(CaseId::Indentation.error_falls(&force), "{msg}");
         assert!(CaseId::Indentation.error_falls(&field), "{msg}");
     }
