@@ -67,8 +67,9 @@ fn three_levels(case: CaseId, model: ModelId) -> Vec<needlesim::report::cases::C
 /// matching forces, see below): the cantilever tip error falls over 189, 496 and 1025
 /// nodes ([`CaseId::error_falls`]), and DEB, co-rotated DEB and PBA are within 15% of
 /// Timoshenko at 1025 nodes (the tolerance). Measured (dev machine, K = 18): msm
-/// 37.1%, 20.8%, 12.7%; lshm-cluster 79.5%, 65.5%, 55.2%; DEB 25.2%, 4.0%, 2.2%; PBA
-/// 31.9%, 5.5%, 3.1% (the 189-node beam has 3 nodes across). With K = 16 mass-spring's
+/// 37.1%, 20.8%, 12.7%; lshm-cluster 79.5%, 65.5%, 55.2%; DEB and PBA 25.2%, 4.0%, 2.2%
+/// (the 189-node beam has 3 nodes across; without hourglass control PBA 31.9%, 5.5%,
+/// 3.1%). With K = 16 mass-spring's
 /// beam was anisotropic and its error stopped falling (8.5% at 1025 nodes, 11.9% at
 /// 12,221).
 #[test]
@@ -130,7 +131,7 @@ fn lattice_models_converge_to_the_calibrated_modulus() {
 /// the displacement-field error fall for every model that converges to linear elasticity.
 /// Measured (dev machine, K = 18, 0.5 mm punch), force: msm 21.1%, 8.9%, 4.2%;
 /// lshm-cluster 55.9%, 21.8%, 13.8%; DEB 15.8%, 6.2%, 3.8%; co-rotated DEB 15.6%, 6.0%,
-/// 3.5%; PBA 13.7%, 3.7%, 1.5%. With K = 16 and a 2 mm punch the lattice models' error
+/// 3.5%; PBA 14.8%, 5.2%, 2.7%. With K = 16 and a 2 mm punch the lattice models' error
 /// rose after 729 nodes (anisotropy) and PBA's after 729 (its Green strain at 2% nominal
 /// strain is not the linear reference).
 ///
