@@ -157,13 +157,18 @@ fn dispatch_beyond_one_grid_dimension() {
 #[test]
 fn shape_rows_written_on_either_backend_agree() {
     use needlesim::SimError;
+    // Rest-length rows are K wide (the scene's default K).
+    let k = Tissue::from_scene(&cube_scene(MODELS[0].1, 639, 0.0, [1.0; 3]))
+        .unwrap()
+        .neighbours
+        .k;
     for (label, material, array, offset, bytes) in [
         (
             "msm",
             MODELS[0].1,
             "rest_length",
-            7 * 16 * 4,
-            vec![0.02f32; 16],
+            7 * k * 4,
+            vec![0.02f32; k],
         ),
         // Node 9's rest position moved, with its volume (the w lane) changed.
         (

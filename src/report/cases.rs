@@ -9,8 +9,9 @@
 //!   `omega_1 = 1.8751^2 sqrt(E I / (rho A L^4))`;
 //! - stretch: a free cube stretched by eps along z between frictionless end plates
 //!   (rollers); the stress on the end plate against `E eps` and the lateral strain against
-//!   `-nu eps`;
-//! - indentation: a bonded flat square punch (5 x 5 cm) pressed 0.5 mm into the top of a
+//!   `-nu eps` (point based animation: the exact St Venant-Kirchhoff answer,
+//!   [`stretch_reference`]);
+//! - indentation: a bonded flat square punch (5 x 5 cm) pressed 0.1 mm into the top of a
 //!   10 cm cube with a fixed bottom; the punch force and the displacement field against a
 //!   converged quadratic-tetrahedron solution from scikit-fem (`scripts/fem_indentation.py`,
 //!   data in `reference/`). The issue asked for the needle tip pressed into the surface;
@@ -54,9 +55,10 @@ pub const CUBE: f64 = 0.1;
 pub const STRETCH: f64 = 0.002;
 /// Half the side of the square punch, m.
 pub const PUNCH_HALF_WIDTH: f64 = 0.025;
-/// Punch depth, m (2% of the cube at 2 mm made point based animation's Green strain
-/// differ from the linear reference by a few percent).
-pub const PUNCH_DEPTH: f64 = 0.0005;
+/// Punch depth, m: 0.1% of the cube, so that point based animation's Green strain stays
+/// close to the linear reference (its punch force differs from Debunne's, whose gradient
+/// and volumes it shares, by 0.4% at 15,625 nodes; by 1.25% at 0.5 mm and 5% at 2 mm).
+pub const PUNCH_DEPTH: f64 = 0.0001;
 /// Neighbours per node in every case: 18 completes the first two shells of the cubic
 /// lattice (16 drops one face-diagonal pair at every node and makes the lattice models
 /// anisotropic).
@@ -117,22 +119,28 @@ impl ModelId {
     /// The `[material]` table for Young's modulus `young` on a lattice of spacing `h`
     /// (mass-spring and shape matching take their stiffness from the calibration rule).
     pub fn material(self, young: f64, h: f64) -> String {
-        let cal = calibration::calibration(NEIGHBOURS).expect("the report's K is calibrated");
+        let k = |c: Result<f64, calibration::UncalibratedNeighbours>| {
+            c.expect("the report's K is calibrated (tested)")
+        };
         let elastic = |model: &str, extra: &str| {
             format!("model = \"{model}\"\nyoung_modulus = {young:e}\npoisson_ratio = {POISSON}\n{extra}")
         };
         match self {
             ModelId::Msm => format!(
                 "model = \"mass_spring\"\nstiffness = {:e}\nspring_damping = 0.0\n",
-                cal.mass_spring * young * h
+                k(calibration::mass_spring_stiffness(young, h, NEIGHBOURS))
             ),
             ModelId::LshmNode => format!(
                 "model = \"local_shape_matching\"\nforces = \"node\"\nstiffness = {:e}\n",
-                cal.shape_matching_node * young * h
+                k(calibration::shape_matching_stiffness(
+                    young, h, NEIGHBOURS, false
+                ))
             ),
             ModelId::LshmCluster => format!(
                 "model = \"local_shape_matching\"\nforces = \"cluster\"\nstiffness = {:e}\n",
-                cal.shape_matching_cluster * young * h
+                k(calibration::shape_matching_stiffness(
+                    young, h, NEIGHBOURS, true
+                ))
             ),
             ModelId::Deb => elastic("debunne_meshfree", ""),
             ModelId::DebCorotated => elastic("debunne_meshfree", "corotated = true"),
@@ -146,9 +154,8 @@ impl ModelId {
     pub fn damping_floor(self, young: f64, h: f64) -> f64 {
         match self {
             ModelId::LshmNode => {
-                let cal =
-                    calibration::calibration(NEIGHBOURS).expect("the report's K is calibrated");
-                let k = cal.shape_matching_node * young * h;
+                let k = calibration::shape_matching_stiffness(young, h, NEIGHBOURS, false)
+                    .expect("the report's K is calibrated (tested)");
                 0.2 * (k / (DENSITY * h * h * h)).sqrt()
             }
             _ => 0.0,
@@ -203,7 +210,11 @@ impl CaseId {
     /// equilibrium test's [`REL_TOL`]. Cantilever: 1% (a 3D clamp also holds the Poisson
     /// contraction that Timoshenko's clamp leaves free). Frequency: 1% (Euler-Bernoulli's
     /// first frequency is about 0.6% above Timoshenko's for this 10:1 beam). Indentation:
-    /// 1% (the FEM reference's Richardson extrapolation, `reference/indentation_fem.md`).
+    /// 1% (the FEM reference's Richardson extrapolation, `reference/indentation_fem.md`; the
+    /// displacement field is its N = 16 solution, whose force is 2.5% off the extrapolated
+    /// one, so field errors near 1% are at its accuracy too). The stretch floor is a settle
+    /// tolerance, not a bound: the remaining gap to equilibrium can be a small multiple of
+    /// it.
     pub fn reference_accuracy(self) -> f64 {
         match self {
             CaseId::Stretch => REL_TOL,
@@ -213,10 +224,11 @@ impl CaseId {
 
     /// Whether `errors` (coarsest first) fall with resolution: each error is below the one
     /// before it, or both are within [`Self::reference_accuracy`]. Non-finite errors (no
-    /// result) never fall.
+    /// result) never fall, nor does a single error.
     pub fn error_falls(self, errors: &[f64]) -> bool {
         let floor = self.reference_accuracy();
-        errors.iter().all(|e| e.is_finite())
+        errors.len() >= 2
+            && errors.iter().all(|e| e.is_finite())
             && errors
                 .windows(2)
                 .all(|w| w[1] < w[0] || w[1].max(w[0]) < floor)

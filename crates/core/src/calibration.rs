@@ -14,14 +14,14 @@
 //! K = 16 (the paper's; measured at a 1% stretch); other K have no C
 //! ([`UncalibratedNeighbours`]) - `needlesim report` lists the C the stretch case implies
 //! at each resolution, which is how these were found. Measured stress error with K = 18
-//! (dev machine, report stretch case, 125 / 729 / 2197 / 15,625 nodes): mass-spring +9.1%,
-//! +2.5%, +1.3%, +0.5%; cluster shape matching +47%, +18%, +11%, +5.1%; per-node shape
-//! matching (the paper's forces) +99%, +40%, +25%, +12%.
+//! (dev machine, report stretch case, 125 / 729 / 2197 / 15,625 nodes): mass-spring +9.2%,
+//! +2.5%, +1.3%, +0.55%; cluster shape matching +47%, +18%, +11%, +5.1%; per-node shape
+//! matching (the paper's forces) +99%, +40%, +25%, +11%.
 //!
 //! K = 18 completes the first two shells of a cubic lattice (6 faces, 12 face diagonals).
 //! K = 16 keeps 10 of the 12 diagonals and every node drops the same pair, so the lattice
 //! models are anisotropic: mass-spring's cantilever, bending in that plane, ended up 11.9%
-//! too soft at 12,221 nodes and not converging (`docs/report` before 2026-11-22); with
+//! too soft at 12,221 nodes and not converging (`docs/report` at commit cc1418b); with
 //! K = 18 its error falls with resolution (see the report).
 //!
 //! Shape matching clusters at the surface are lopsided and have no share rule yet.
@@ -48,9 +48,9 @@ pub struct Calibration {
 pub const CALIBRATIONS: [Calibration; 2] = [
     Calibration {
         neighbours: 18,
-        mass_spring: 0.7534,
-        shape_matching_node: 3.220,
-        shape_matching_cluster: 0.2132,
+        mass_spring: 0.7535,
+        shape_matching_node: 3.215,
+        shape_matching_cluster: 0.2131,
     },
     Calibration {
         neighbours: 16,
@@ -63,12 +63,21 @@ pub const CALIBRATIONS: [Calibration; 2] = [
 /// No C was measured for this neighbour count.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
 #[error(
-    "no stiffness calibration for {neighbours} neighbours (calibrated: 16, 18); \
-     measure C with the report's stretch case or give the stiffness directly"
+    "no stiffness calibration for {neighbours} neighbours (calibrated: {}); \
+     measure C with the report's stretch case or give the stiffness directly",
+    calibrated_list()
 )]
 pub struct UncalibratedNeighbours {
     /// The neighbour count asked for.
     pub neighbours: usize,
+}
+
+fn calibrated_list() -> String {
+    let k: Vec<String> = CALIBRATIONS
+        .iter()
+        .map(|c| c.neighbours.to_string())
+        .collect();
+    k.join(", ")
 }
 
 /// The calibration for `neighbours` slots per node.
@@ -118,7 +127,12 @@ mod tests {
             mass_spring_stiffness(1e4, 0.01, 12),
             Err(UncalibratedNeighbours { neighbours: 12 })
         );
+        let msg = UncalibratedNeighbours { neighbours: 12 }.to_string();
+        assert!(
+            msg.contains("12 neighbours") && msg.contains("18, 16"),
+            "{msg}"
+        );
         let k = shape_matching_stiffness(1e4, 0.01, 18, true).unwrap();
-        assert!((k - 0.2132 * 1e4 * 0.01).abs() < 1e-9);
+        assert!((k - 0.2131 * 1e4 * 0.01).abs() < 1e-9);
     }
 }

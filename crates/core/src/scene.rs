@@ -317,13 +317,12 @@ pub enum SpringShare {
     /// The larger cell volume of its two nodes over an interior node's cell (`spacing^3`):
     /// 1 inside, 1/2 for a spring lying in a face of a box lattice, 1/4 along an edge: the
     /// share of the lattice cells around the spring that lie inside the body. Under a
-    /// uniform strain a cube of 5^3 nodes is then 9% stiffer than the unbounded lattice,
-    /// 25^3 nodes 0.8% (K = 16 keeps 10 of the 12 face diagonals, so rows near the surface
-    /// are not quite the bulk's), and the calibration `k = C E h` barely drifts with
-    /// resolution (`needlesim_core::calibration`). The price: edge and corner springs are
-    /// a quarter as strong, and a cube squashed to 10% of its height and released stays
-    /// 4.0% off its rest shape with K = 18 (19% with K = 16, `"equal"` 3.6%; the report's
-    /// extreme cases).
+    /// uniform strain a cube of 5^3 nodes is then 4.8% stiffer than the unbounded lattice,
+    /// 9^3 nodes 0.9% (K = 18; `"equal"`: 21.5% at 9^3), and the calibration `k = C E h`
+    /// barely drifts with resolution (`needlesim_core::calibration`). The price: edge and
+    /// corner springs are a quarter as strong, and a cube squashed to 10% of its height
+    /// and released stays 4.0% off its rest shape with K = 18 (the report's extreme
+    /// cases; with K = 16 it was 19%, and 3.6% with `"equal"`).
     #[default]
     Cell,
     /// Every spring counts fully (the paper's weighted mass-spring): springs in the
