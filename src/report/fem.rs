@@ -10,7 +10,7 @@ use std::sync::OnceLock;
 const CSV: &str = include_str!("../../reference/indentation_fem.csv");
 const MD: &str = include_str!("../../reference/indentation_fem.md");
 const POINTS: usize = 17;
-/// Punch depth of the shipped solution, m.
+/// Punch depth of the shipped solution, m (checked against `indentation_fem.md`).
 const REFERENCE_DEPTH: f64 = 0.002;
 
 /// The reference solution.
@@ -49,6 +49,12 @@ impl Indentation {
 }
 
 fn parse() -> Result<Indentation, String> {
+    // The shipped solution must be the one REFERENCE_DEPTH describes.
+    if !MD.contains("u = (0, -0.002, 0)") {
+        return Err(format!(
+            "indentation_fem.md does not state the punch displacement u = (0, -{REFERENCE_DEPTH}, 0)"
+        ));
+    }
     let force = MD
         .lines()
         .find_map(|l| {
