@@ -75,11 +75,22 @@ impl Neighbours {
     }
 
     /// The slots of node `i`: `(indices, weights)`.
+    #[inline(always)]
     pub fn row(&self, i: usize) -> (&[u32], &[f32]) {
         (
             &self.index[i * self.k..(i + 1) * self.k],
             &self.weight[i * self.k..(i + 1) * self.k],
         )
+    }
+
+    /// The live slots of node `i` (weight not 0): `(slot, neighbour, weight)`, `slot` the
+    /// index into the flat `capacity * K` arrays.
+    #[inline(always)]
+    pub fn live(&self, i: usize) -> impl Iterator<Item = (usize, usize, f32)> + '_ {
+        (i * self.k..(i + 1) * self.k).filter_map(move |slot| {
+            let w = self.weight[slot];
+            (w != 0.0).then(|| (slot, self.index[slot] as usize, w))
+        })
     }
 
     /// Statistics over the first `n` nodes.

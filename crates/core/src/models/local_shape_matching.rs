@@ -39,16 +39,11 @@ use crate::neighbours::Neighbours;
 /// node itself has offset 0 and weight 1).
 #[inline(always)]
 pub fn centre_offset(i: usize, p: &[Vec4], nb: &Neighbours) -> Vec4 {
-    let k = nb.k;
     let xi = p[i];
     let mut c = [0.0f32; 4];
     let mut wsum = 1.0f32;
-    for s in 0..k {
-        let w = nb.weight[i * k + s];
-        if w == 0.0 {
-            continue;
-        }
-        let d = sub(p[nb.index[i * k + s] as usize], xi);
+    for (_, j, w) in nb.live(i) {
+        let d = sub(p[j], xi);
         c[0] += w * d[0];
         c[1] += w * d[1];
         c[2] += w * d[2];
@@ -79,7 +74,6 @@ pub fn cluster_frame(
     // One pass over the cluster: with offsets d_j = x_j - x_i and d0_j = x0_j - x0_i
     // (the node itself has d = d0 = 0, weight 1),
     // A = sum w (d - c)(d0 - c0)^T = sum w d d0^T - c (sum w d0)^T.
-    let k = nb.k;
     let xi = positions[i];
     let x0i = rest[i];
     let mut wsum = 1.0f32;
@@ -87,12 +81,7 @@ pub fn cluster_frame(
     let mut sd0 = [0.0f32; 3];
     let mut sdd0 = 0.0f32;
     let mut m: Mat3 = [[0.0; 3]; 3];
-    for s in 0..k {
-        let w = nb.weight[i * k + s];
-        if w == 0.0 {
-            continue;
-        }
-        let j = nb.index[i * k + s] as usize;
+    for (_, j, w) in nb.live(i) {
         let d = sub(positions[j], xi);
         let d0 = sub(rest[j], x0i);
         let wd0 = [w * d0[0], w * d0[1], w * d0[2]];
@@ -161,18 +150,12 @@ pub fn cluster_force(
     centre: &[Vec4],
     rotation: &[Vec4],
 ) -> Vec4 {
-    let k = nb.k;
     let xj = positions[j];
     let x0j = rest[j];
     let own = quat_rotate(rotation[j], shape_vectors[j]);
     let cj = centre[j];
     let mut f = [cj[0] + own[0], cj[1] + own[1], cj[2] + own[2], 0.0];
-    for s in 0..k {
-        let w = nb.weight[j * k + s];
-        if w == 0.0 {
-            continue;
-        }
-        let i = nb.index[j * k + s] as usize;
+    for (_, i, w) in nb.live(j) {
         // g_ij - x_j = (x_i - x_j) + c_i + R_i ((x0_j - x0_i) + v_i)
         let d = sub(positions[i], xj);
         let q0 = sub(x0j, rest[i]);

@@ -27,18 +27,15 @@ use crate::neighbours::Neighbours;
 /// mutual pair get the same bits, so the lists stay mutual.
 pub fn apply_cell_shares(nb: &mut Neighbours, node_volumes: &[f64], spacing: f64, n: usize) {
     let cell = spacing.powi(3);
-    let k = nb.k;
-    for i in 0..n {
-        for s in 0..k {
-            let slot = i * k + s;
-            let w = nb.weight[slot];
-            if w == 0.0 {
-                continue;
-            }
-            let j = nb.index[slot] as usize;
+    let scaled: Vec<(usize, f32)> = (0..n)
+        .flat_map(|i| nb.live(i).map(move |s| (i, s)))
+        .map(|(i, (slot, j, w))| {
             let share = node_volumes[i].max(node_volumes[j]) / cell;
-            nb.weight[slot] = (w as f64 * share) as f32;
-        }
+            (slot, (w as f64 * share) as f32)
+        })
+        .collect();
+    for (slot, w) in scaled {
+        nb.weight[slot] = w;
     }
 }
 
@@ -53,16 +50,11 @@ pub fn rest_lengths(rest: &[Vec4], nb: &Neighbours, n: usize) -> Vec<f32> {
 
 /// The K rest lengths of node i's row (0 for empty slots).
 pub fn rest_length_row(i: usize, rest: &[Vec4], nb: &Neighbours) -> Vec<f32> {
-    (0..nb.k)
-        .map(|s| {
-            let slot = i * nb.k + s;
-            if nb.weight[slot] != 0.0 {
-                norm(sub(rest[nb.index[slot] as usize], rest[i]))
-            } else {
-                0.0
-            }
-        })
-        .collect()
+    let mut row = vec![0.0f32; nb.k];
+    for (slot, j, _) in nb.live(i) {
+        row[slot - i * nb.k] = norm(sub(rest[j], rest[i]));
+    }
+    row
 }
 
 /// Elastic plus spring-damping force on node `i`.
@@ -76,17 +68,10 @@ pub fn force(
     stiffness: f32,
     damping: f32,
 ) -> Vec4 {
-    let k = nb.k;
     let xi = positions[i];
     let vi = velocities[i];
     let mut f = [0.0f32; 4];
-    for s in 0..k {
-        let slot = i * k + s;
-        let w = nb.weight[slot];
-        if w == 0.0 {
-            continue;
-        }
-        let j = nb.index[slot] as usize;
+    for (slot, j, w) in nb.live(i) {
         let d = sub(positions[j], xi);
         let len = norm(d);
         if len <= 0.0 {

@@ -130,14 +130,10 @@ pub const MOMENT_TOLERANCE: f64 = 1e-3;
 
 /// Inverse moment matrix `A_i^-1` of node i (row-major), truncated as described above.
 pub fn inverse_moment(i: usize, rest: &[Vec4], nb: &Neighbours) -> [f32; 9] {
-    let k = nb.k;
     let mut a = [0.0f64; 9];
-    for s in 0..k {
-        let w = nb.weight[i * k + s] as f64;
-        if w == 0.0 {
-            continue;
-        }
-        let d = sub(rest[nb.index[i * k + s] as usize], rest[i]);
+    for (_, j, w) in nb.live(i) {
+        let w = w as f64;
+        let d = sub(rest[j], rest[i]);
         for r in 0..3 {
             for c in 0..3 {
                 a[r * 3 + c] += w * d[r] as f64 * d[c] as f64;
@@ -179,16 +175,10 @@ pub fn displacement_gradient(
     nb: &Neighbours,
     inverse_moment: &[f32; 9],
 ) -> (Mat3, f32) {
-    let k = nb.k;
     let (xi, x0i) = (positions[i], rest[i]);
     let mut b: Mat3 = [[0.0; 3]; 3];
     let mut trace = 0.0f32;
-    for s in 0..k {
-        let w = nb.weight[i * k + s];
-        if w == 0.0 {
-            continue;
-        }
-        let j = nb.index[i * k + s] as usize;
+    for (_, j, w) in nb.live(i) {
         let d = sub(positions[j], xi);
         let d0 = sub(rest[j], x0i);
         for r in 0..3 {
@@ -238,17 +228,11 @@ pub fn gather_force(
     nb: &Neighbours,
     first: &[[f32; 12]],
 ) -> Vec4 {
-    let k = nb.k;
     let (xk, x0k) = (positions[k_node], rest[k_node]);
     let own = &first[k_node];
     let mut f = [0.0f32; 3];
     let mut m = [0.0f32; 3];
-    for s in 0..k {
-        let w = nb.weight[k_node * k + s];
-        if w == 0.0 {
-            continue;
-        }
-        let i = nb.index[k_node * k + s] as usize;
+    for (_, i, w) in nb.live(k_node) {
         let d0 = sub(rest[i], x0k);
         let d = sub(positions[i], xk);
         let qi = &first[i];

@@ -42,15 +42,11 @@ pub fn volumes(rest: &[Vec4], nb: &Neighbours, n: usize, total_volume: f64) -> V
 
 /// The unscaled density-estimate volume `l_i^3 / (1 + sum_j w_ij)` of node i.
 pub fn raw_volume(i: usize, rest: &[Vec4], nb: &Neighbours) -> f64 {
-    let k = nb.k;
     let (mut wsum, mut ell) = (1.0f64, 0.0f64);
-    for s in 0..k {
-        let w = nb.weight[i * k + s] as f64;
-        if w == 0.0 {
-            continue;
-        }
+    for (_, j, w) in nb.live(i) {
+        let w = w as f64;
         wsum += w;
-        let d = sub(rest[nb.index[i * k + s] as usize], rest[i]);
+        let d = sub(rest[j], rest[i]);
         ell = ell.max(crate::math::norm(d) as f64);
     }
     ell.powi(3) / wsum
