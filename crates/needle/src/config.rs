@@ -7,8 +7,12 @@
 //! length = 0.15                  # m
 //! spacing = 0.01                 # node-adding threshold h, m (default: the mesh spacing)
 //! tip_refresh = 0.1              # Tip node neighbours refreshed every tip_refresh * h
-//! thresholds = { puncture = 80.0, release = 95.0 }   # degrees
-//! friction = { static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
+//! radius = 0.000635             # m, default an 18 G needle (1.27 mm outer diameter)
+//! cutting = 0.5                  # N, at the tip while it advances into uncut tissue
+//! thresholds = { puncture = 80.0, release = 95.0 }   # cone angle, degrees
+//! puncture_force = 2.0           # N: puncture by force instead of the cone angle
+//! friction = { coefficient = 0.3, grip = 40.0 }      # per unit length (default model)
+//! # friction = { model = "paper", static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
 //!
 //! [[needle.keyframe]]
 //! action = "move"
@@ -19,7 +23,7 @@
 //!
 //! Without keyframes the needle stays where it is put ([`crate::Simulation::set_pose`]).
 
-use crate::friction::FrictionParams;
+use crate::friction::FrictionModel;
 use crate::needle::Needle;
 use crate::puncture::Thresholds;
 use crate::script::{Keyframe, PoseScript};
@@ -43,12 +47,25 @@ pub struct NeedleConfig {
     /// Fraction of h after which the Tip node's neighbours are refreshed (paper: 1/10).
     #[serde(default = "default_tip_refresh")]
     pub tip_refresh: f64,
-    /// Cone angle thresholds.
+    /// Needle radius in m (default 0.635 mm, an 18 G needle). It sets the grip of the
+    /// tissue on the shaft when `friction.grip` is not given; it must be below half the
+    /// node spacing (the tissue the shaft pushes aside is below the node resolution).
+    #[serde(default = "default_radius")]
+    pub radius: f64,
+    /// Cutting force in N at the tip while it advances into tissue it has not cut yet
+    /// (default 0: no cutting force). Per-length friction model only.
+    #[serde(default)]
+    pub cutting: f64,
+    /// Cone angle thresholds (the release threshold applies with either puncture rule).
     #[serde(default)]
     pub thresholds: Thresholds,
-    /// Stick-slip friction.
+    /// Puncture by force: the surface is punctured when the axial force of the dented
+    /// surface on the tip exceeds this many N (instead of the cone angle rule).
     #[serde(default)]
-    pub friction: FrictionParams,
+    pub puncture_force: Option<f64>,
+    /// Stick-slip friction (read from the `friction` table by [`FrictionModel::from_value`]).
+    #[serde(skip)]
+    pub friction: FrictionModel,
     /// Pose script played from time 0.
     #[serde(default)]
     pub keyframe: Vec<Keyframe>,
@@ -58,16 +75,29 @@ fn default_tip_refresh() -> f64 {
     0.1
 }
 
+/// An 18 G needle: 1.27 mm outer diameter.
+pub const RADIUS_18G: f64 = 0.635e-3;
+
+fn default_radius() -> f64 {
+    RADIUS_18G
+}
+
 impl NeedleConfig {
     /// Reads and validates the `[needle]` table.
     pub fn from_table(table: &toml::Table) -> Result<NeedleConfig, SceneError> {
-        let c: NeedleConfig =
-            toml::Value::Table(table.clone())
+        let mut table = table.clone();
+        let friction = table.remove("friction");
+        let mut c: NeedleConfig =
+            toml::Value::Table(table)
                 .try_into()
                 .map_err(|e: toml::de::Error| SceneError::Parse {
                     origin: "[needle]".into(),
                     message: e.to_string().trim_end().replace('\n', " "),
                 })?;
+        if let Some(f) = friction {
+            c.friction = FrictionModel::from_value(&f)
+                .map_err(|(key, why)| SceneError::invalid(key, why))?;
+        }
         c.validate()?;
         Ok(c)
     }
@@ -94,12 +124,40 @@ impl NeedleConfig {
                 format!("must be in (0, 1], got {}", self.tip_refresh),
             ));
         }
+        if !(self.radius.is_finite() && self.radius > 0.0) {
+            return Err(SceneError::invalid(
+                "needle.radius",
+                format!("must be a finite number > 0 (m), got {}", self.radius),
+            ));
+        }
+        if !(self.cutting.is_finite() && self.cutting >= 0.0) {
+            return Err(SceneError::invalid(
+                "needle.cutting",
+                format!("must be a finite number >= 0 (N), got {}", self.cutting),
+            ));
+        }
+        if let Some(f) = self.puncture_force {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(SceneError::invalid(
+                    "needle.puncture_force",
+                    format!("must be a finite number > 0 (N), got {f}"),
+                ));
+            }
+        }
+        if self.cutting > 0.0 && matches!(self.friction, FrictionModel::Paper(_)) {
+            return Err(SceneError::invalid(
+                "needle.cutting",
+                "needs the per-length friction model (the paper's model has no cutting force)",
+            ));
+        }
         self.thresholds
             .validate()
             .map_err(|e| SceneError::invalid("needle.thresholds", e))?;
-        self.friction
-            .validate()
-            .map_err(|e| SceneError::invalid("needle.friction", e))?;
+        match &self.friction {
+            FrictionModel::PerLength(p) => p.validate(),
+            FrictionModel::Paper(p) => p.validate(),
+        }
+        .map_err(|(key, why)| SceneError::invalid(key, why))?;
         self.script()
             .map_err(|e| SceneError::invalid(format!("needle.keyframe[{}]", e.index), e.reason))?;
         Ok(())
@@ -126,6 +184,25 @@ impl NeedleConfig {
     /// plus the Surface node, the Tip node and one spare for the step in which a node is
     /// added before the Tip node is re-added.
     pub fn node_slots(&self, h: f64) -> usize {
-        (self.length / h).ceil() as usize + 3
+        // (+1: the exit node of a needle pushed through the far surface.)
+        (self.length / h).ceil() as usize + 4
+    }
+
+    /// Checks the radius against the node spacing `h`: the shaft must be thinner than
+    /// half a spacing, since the tissue it pushes aside is modelled below the node
+    /// resolution (the grip of the friction model).
+    pub fn check_radius(&self, h: f64) -> Result<(), SceneError> {
+        if self.radius >= 0.5 * h {
+            return Err(SceneError::invalid(
+                "needle.radius",
+                format!(
+                    "{} m is not below half the node spacing h = {h} m: the friction model \
+                     treats the tissue the shaft pushes aside as below the node resolution; \
+                     use a coarser `needle.spacing` or a thinner needle",
+                    self.radius
+                ),
+            ));
+        }
+        Ok(())
     }
 }

@@ -1,23 +1,59 @@
-//! Stick-slip friction between the needle shaft and a needle node (paper section 5.3, after
-//! Karnopp 1985).
+//! Friction between the needle shaft and the needle nodes (paper section 5.3, after
+//! Karnopp 1985), in two models.
 //!
-//! With `t` the unit shaft direction (base to tip) and `f` the elastic tissue force on the
-//! node, the axial part is `f_p = (f . t) t` (eq. 3) and the normal part `f_N = f - f_p`
-//! (eq. 4).
+//! With `t` the unit shaft direction (base to tip) and `f` the elastic tissue force on a
+//! node, the axial part is `a = f . t` (eq. 3) and the normal part `f_N = f - a t`
+//! (eq. 4). The shaft holds every node on its line (bilateral); friction acts along it.
 //!
-//! - Stick: the node moves rigidly with the needle. It starts to slip when `|f_p|` exceeds
-//!   the static threshold.
-//! - Slip: the node is projected onto the shaft and receives the dynamic friction force
-//!   `f_df = (k_vf w + k_df sign(w) |f_N|) t` with `w = (v_needle - v_node) . t`, the
-//!   needle's axial speed relative to the node. It sticks again when `|w|` falls below the
-//!   stick speed while `|f_p|` is within the static threshold.
+//! # `model = "per_length"` (default): Coulomb friction per unit length, implicit Karnopp
 //!
-//! Sign convention: the paper's equation 2 reads `k_vf v_i^p + k_df sign(v_needle^p -
-//! v_i^p) |f_N| t`. Its Coulomb term is the one above: it drags the node the way the needle
-//! moves relative to it. Its viscous term, taken literally, is proportional to the node's
-//! own axial velocity and would push a node further along the way it already moves (energy
-//! in, not out); we apply it to the relative velocity `w` like the Coulomb term, so that
-//! both terms dissipate: `f_df . (v_node - v_needle) <= 0` always (tested).
+//! Okamura, Simone and O'Leary 2004 (IEEE TBME 51(10)) split the insertion force into the
+//! capsule's stiffness before puncture, friction along the inserted shaft and a cutting
+//! force at the tip. Here each needle node carries the shaft length `l` it represents (half
+//! the way to its neighbours along the shaft, the first node from the entry, the last to
+//! the tip) and the normal load on that length:
+//!
+//! `N = q l + |f_N|`
+//!
+//! `q` (N/m) is the grip of the tissue that the shaft pushes aside, `|f_N|` the net normal
+//! force of the tissue on the node (the shaft pressed sideways, as in a rotation). The
+//! kinetic limit is `K = mu_k N`, the static limit `S = mu_s N`, and a slipping node also
+//! feels `c l w` (viscous friction per unit length, `w` the relative axial speed). The
+//! total friction then grows with the inserted length and does not depend on how many
+//! nodes share it.
+//!
+//! The grip is sub-grid: an 18 G needle (radius 0.635 mm) is far thinner than any node
+//! spacing, so the tissue it pushes aside is not resolved by nodes. By default `q` comes
+//! from the tissue's Young's modulus: the bevel cuts a slit as wide as the needle, and a
+//! slit of half-width `a` held open into the shaft's circle of radius `a` needs the contact
+//! pressure `p = E / (2 (1 - nu^2))` (plane-strain opening of a pressurised crack,
+//! Sneddon 1946: semi-minor axis `2 p a (1 - nu^2) / E`), so `q = 2 pi a p`. This is linear
+//! elasticity at strains of order one, an estimate of the order of the grip; measured
+//! friction is matched by giving `grip` (or the coefficient) explicitly.
+//!
+//! The stick-slip law is solved implicitly per node and per step, so it cannot chatter:
+//! - a sticking node moves with the needle; the needle holds it with the force it needs
+//!   (`-a`); it slips when that exceeds the static limit in its direction;
+//! - a slipping node is free along the shaft; the force `phi_stick` that would bring it to
+//!   the needle's axial speed by the end of the step is computed from its velocity and
+//!   force. If it is within the kinetic limit the node sticks again with exactly that
+//!   force; otherwise it gets the kinetic force in the direction of `phi_stick`, which
+//!   cannot overshoot (the relative velocity keeps its sign: no sign flip near zero speed).
+//!
+//! The limits may differ by direction: the Tip node is also pushed forward by the cutting
+//! force (a forward limit raised by `F_c` while the tip cuts new tissue) but is not pulled
+//! back by the tip face when the needle is withdrawn.
+//!
+//! # `model = "paper"`: equation 2 as written
+//!
+//! Stick: the node moves rigidly with the needle, and slips when `|a|` exceeds the static
+//! threshold. Slip: `f_df = (k_vf w + k_df sign(w) |f_N|) t` with `w = (v_needle - v_node)
+//! . t`; it sticks again when `|w|` falls below the stick speed while `|a|` is within the
+//! threshold. The paper's viscous term, taken literally, is proportional to the node's own
+//! axial velocity and would push a node further along the way it already moves; we apply it
+//! to the relative velocity like the Coulomb term, so both dissipate (tested). This is the
+//! model whose explicit `sign(w)` flips from step to step near zero relative speed; it is
+//! kept to reproduce the paper.
 
 use serde::Deserialize;
 
@@ -31,10 +67,106 @@ pub enum FrictionState {
     Slip,
 }
 
-/// Friction parameters.
+/// The friction model of the `[needle]` table's `friction` key.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FrictionModel {
+    /// `model = "per_length"` (default): Coulomb friction per unit length of shaft, solved
+    /// implicitly (no chatter).
+    PerLength(PerLengthFriction),
+    /// `model = "paper"`: the paper's equation 2, explicit.
+    Paper(PaperFriction),
+}
+
+impl Default for FrictionModel {
+    fn default() -> Self {
+        FrictionModel::PerLength(PerLengthFriction::default())
+    }
+}
+
+/// Parameters of the per-length model.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct FrictionParams {
+pub struct PerLengthFriction {
+    /// Kinetic Coulomb coefficient `mu_k` (dimensionless), default 0.3.
+    #[serde(default = "default_coefficient")]
+    pub coefficient: f64,
+    /// Static coefficient `mu_s >= mu_k`; default: equal to `coefficient`.
+    #[serde(default)]
+    pub static_coefficient: Option<f64>,
+    /// Normal load per unit length of the tissue gripping the shaft, N/m. Default: from
+    /// the tissue's Young's modulus and the needle radius, `pi a E / (1 - nu^2)`.
+    #[serde(default)]
+    pub grip: Option<f64>,
+    /// Viscous friction per unit length and unit relative speed, N s/m^2 (default 0).
+    #[serde(default)]
+    pub viscous: f64,
+}
+
+fn default_coefficient() -> f64 {
+    0.3
+}
+
+impl Default for PerLengthFriction {
+    fn default() -> Self {
+        PerLengthFriction {
+            coefficient: default_coefficient(),
+            static_coefficient: None,
+            grip: None,
+            viscous: 0.0,
+        }
+    }
+}
+
+impl PerLengthFriction {
+    /// The static coefficient (the kinetic one when not given).
+    pub fn static_coefficient(&self) -> f64 {
+        self.static_coefficient.unwrap_or(self.coefficient)
+    }
+
+    /// Checks that every value is finite and non-negative and `mu_s >= mu_k`.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let mut values = vec![
+            ("coefficient", self.coefficient),
+            ("viscous", self.viscous),
+        ];
+        if let Some(g) = self.grip {
+            values.push(("grip", g));
+        }
+        if let Some(s) = self.static_coefficient {
+            values.push(("static_coefficient", s));
+        }
+        for (name, v) in values {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((
+                    format!("needle.friction.{name}"),
+                    format!("must be a finite number >= 0, got {v}"),
+                ));
+            }
+        }
+        if self.static_coefficient() < self.coefficient {
+            return Err((
+                "needle.friction.static_coefficient".into(),
+                format!(
+                    "must be >= coefficient ({}), got {}",
+                    self.coefficient,
+                    self.static_coefficient()
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Grip per unit length (N/m) of a tissue of Young's modulus `young` (Pa) and Poisson
+/// ratio `nu` on a shaft of radius `radius` (m): `pi a E / (1 - nu^2)` (module docs).
+pub fn grip_from_modulus(young: f64, nu: f64, radius: f64) -> f64 {
+    std::f64::consts::PI * radius * young / (1.0 - nu * nu)
+}
+
+/// Parameters of the paper's equation 2.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaperFriction {
     /// Axial elastic force in N above which a sticking node slips.
     pub static_threshold: f64,
     /// Coulomb coefficient k_df (dimensionless), times the normal force.
@@ -51,12 +183,12 @@ fn default_stick_speed() -> f64 {
     1e-4
 }
 
-impl Default for FrictionParams {
+impl Default for PaperFriction {
     /// 0.01 N static threshold, Coulomb coefficient 0.2, 0.1 N s/m viscous, stick below
-    /// 0.1 mm/s: values of the order of the shipped scenes' node forces, not measured
+    /// 0.1 mm/s: values of the order of the paper scenes' node forces, not measured
     /// tissue constants.
     fn default() -> Self {
-        FrictionParams {
+        PaperFriction {
             static_threshold: 0.01,
             dynamic: 0.2,
             viscous: 0.1,
@@ -65,9 +197,9 @@ impl Default for FrictionParams {
     }
 }
 
-impl FrictionParams {
+impl PaperFriction {
     /// Checks that every value is finite and non-negative (the stick speed positive).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), (String, String)> {
         let values = [
             ("static_threshold", self.static_threshold),
             ("dynamic", self.dynamic),
@@ -75,23 +207,75 @@ impl FrictionParams {
         ];
         for (name, v) in values {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!(
-                    "friction.{name} must be a finite number >= 0, got {v}"
+                return Err((
+                    format!("needle.friction.{name}"),
+                    format!("must be a finite number >= 0, got {v}"),
                 ));
             }
         }
         if !(self.stick_speed.is_finite() && self.stick_speed > 0.0) {
-            return Err(format!(
-                "friction.stick_speed must be a finite number > 0, got {}",
-                self.stick_speed
+            return Err((
+                "needle.friction.stick_speed".into(),
+                format!("must be a finite number > 0, got {}", self.stick_speed),
             ));
         }
         Ok(())
     }
 }
 
+impl FrictionModel {
+    /// Reads the `friction` table: `model = "per_length"` (default) or `"paper"`, and
+    /// that model's keys.
+    pub fn from_value(value: &toml::Value) -> Result<FrictionModel, (String, String)> {
+        let key = |k: &str| format!("needle.friction.{k}");
+        let Some(table) = value.as_table() else {
+            return Err((
+                "needle.friction".into(),
+                format!("must be a table, got {value}"),
+            ));
+        };
+        let mut table = table.clone();
+        let model = match table.remove("model") {
+            None => "per_length".to_string(),
+            Some(toml::Value::String(s)) => s,
+            Some(v) => return Err((key("model"), format!("must be a string, got {v}"))),
+        };
+        let parse_err = |e: toml::de::Error| {
+            let msg = e.to_string().trim_end().replace('\n', " ");
+            (format!("needle.friction (model = \"{model}\")"), msg)
+        };
+        let m = match model.as_str() {
+            "per_length" => {
+                let p: PerLengthFriction = toml::Value::Table(table)
+                    .try_into()
+                    .map_err(parse_err)?;
+                p.validate()?;
+                FrictionModel::PerLength(p)
+            }
+            "paper" => {
+                let p: PaperFriction = toml::Value::Table(table)
+                    .try_into()
+                    .map_err(parse_err)?;
+                p.validate()?;
+                FrictionModel::Paper(p)
+            }
+            other => {
+                return Err((
+                    key("model"),
+                    format!("must be \"per_length\" or \"paper\", got \"{other}\""),
+                ))
+            }
+        };
+        Ok(m)
+    }
+}
+
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 /// Axial component `f . t` and normal part `f - (f . t) t` of a force (eqs. 3 and 4).
@@ -100,18 +284,99 @@ pub fn split(f: [f64; 3], t: [f64; 3]) -> (f64, [f64; 3]) {
     (p, std::array::from_fn(|a| f[a] - p * t[a]))
 }
 
-/// The state after this step: a sticking node slips when its axial elastic force exceeds
-/// the threshold; a slipping node sticks when the relative axial speed is below the stick
-/// speed and the axial force is within the threshold (Karnopp's band: a node whose force
-/// would make it slip again at once keeps slipping, so the state does not chatter from
-/// step to step).
-pub fn next_state(
+/// Friction limits of one node in N, by direction of the force the needle exerts on it
+/// (`forward`: towards the tip).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    /// Static limit, forward.
+    pub static_forward: f64,
+    /// Static limit, backward.
+    pub static_backward: f64,
+    /// Kinetic limit, forward.
+    pub kinetic_forward: f64,
+    /// Kinetic limit, backward.
+    pub kinetic_backward: f64,
+    /// Viscous coefficient of the node, N s/m.
+    pub viscous: f64,
+}
+
+impl Limits {
+    /// Symmetric limits.
+    pub fn symmetric(stat: f64, kinetic: f64, viscous: f64) -> Limits {
+        Limits {
+            static_forward: stat,
+            static_backward: stat,
+            kinetic_forward: kinetic,
+            kinetic_backward: kinetic,
+            viscous,
+        }
+    }
+}
+
+/// One node's axial motion over one step, as the integrator will take it:
+/// `v' = d (v + dt (a + phi) / m + dt g)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxialStep {
+    /// Axial elastic force on the node, N.
+    pub elastic: f64,
+    /// Node's axial velocity now, m/s.
+    pub velocity: f64,
+    /// Needle's axial velocity at the node, m/s.
+    pub needle_velocity: f64,
+    /// Node mass, kg.
+    pub mass: f64,
+    /// Time step, s.
+    pub dt: f64,
+    /// The integrator's damping factor `1 / (1 + dt c)`.
+    pub damping_factor: f64,
+    /// Axial gravity, m/s^2.
+    pub gravity: f64,
+}
+
+/// The per-length model's implicit stick-slip step for one node: its state after the
+/// step and the axial force `phi` (N, along `t`) the needle exerts on it this step.
+pub fn per_length_step(state: FrictionState, s: &AxialStep, lim: &Limits) -> (FrictionState, f64) {
+    match state {
+        FrictionState::Stick => {
+            // Held on the needle: the force it takes to keep it there.
+            let hold = -(s.elastic + s.mass * s.gravity);
+            if (-lim.static_backward..=lim.static_forward).contains(&hold) {
+                (FrictionState::Stick, hold)
+            } else if hold > 0.0 {
+                (FrictionState::Slip, lim.kinetic_forward)
+            } else {
+                (FrictionState::Slip, -lim.kinetic_backward)
+            }
+        }
+        FrictionState::Slip => {
+            let beta = s.damping_factor * s.dt / s.mass;
+            let free = s.damping_factor * (s.velocity + s.dt * (s.elastic / s.mass + s.gravity));
+            let stick = (s.needle_velocity - free) / beta;
+            if (-lim.kinetic_backward..=lim.kinetic_forward).contains(&stick) {
+                return (FrictionState::Stick, stick);
+            }
+            let (sigma, k) = if stick > 0.0 {
+                (1.0, lim.kinetic_forward)
+            } else {
+                (-1.0, lim.kinetic_backward)
+            };
+            // phi = sigma k - c w', w' = free + beta phi - u (implicit viscous term).
+            let w = (free - s.needle_velocity + beta * sigma * k) / (1.0 + beta * lim.viscous);
+            (FrictionState::Slip, sigma * k - lim.viscous * w)
+        }
+    }
+}
+
+/// The paper model's state after this step: a sticking node slips when its axial elastic
+/// force exceeds the threshold; a slipping node sticks when the relative axial speed is
+/// below the stick speed and the axial force is within the threshold.
+pub fn paper_next_state(
     state: FrictionState,
     elastic: [f64; 3],
     v_node: [f64; 3],
     v_needle: [f64; 3],
     t: [f64; 3],
-    p: &FrictionParams,
+    p: &PaperFriction,
 ) -> FrictionState {
     match state {
         FrictionState::Stick if split(elastic, t).0.abs() > p.static_threshold => {
@@ -127,17 +392,13 @@ pub fn next_state(
     }
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-/// Dynamic friction force on a slipping node, along the shaft.
-pub fn dynamic_friction(
+/// The paper model's dynamic friction force on a slipping node, along the shaft.
+pub fn paper_dynamic_friction(
     elastic: [f64; 3],
     v_node: [f64; 3],
     v_needle: [f64; 3],
     t: [f64; 3],
-    p: &FrictionParams,
+    p: &PaperFriction,
 ) -> [f64; 3] {
     let w = dot(sub(v_needle, v_node), t);
     let normal = split(elastic, t).1;
@@ -150,7 +411,7 @@ pub fn dynamic_friction(
 mod tests {
     use super::*;
 
-    const P: FrictionParams = FrictionParams {
+    const P: PaperFriction = PaperFriction {
         static_threshold: 0.5,
         dynamic: 0.3,
         viscous: 2.0,
@@ -158,53 +419,23 @@ mod tests {
     };
 
     #[test]
-    fn sticking_node_slips_above_the_threshold_and_sticks_when_slow() {
+    fn paper_node_slips_above_the_threshold_and_sticks_when_slow() {
         let t = [1.0, 0.0, 0.0];
         let v = [0.01, 0.0, 0.0];
+        let st = |s, f, vn| paper_next_state(s, f, vn, v, t, &P);
         // Large normal force, small axial force: still sticks.
-        assert_eq!(
-            next_state(FrictionState::Stick, [0.4, 5.0, 0.0], v, v, t, &P),
-            FrictionState::Stick
-        );
-        assert_eq!(
-            next_state(FrictionState::Stick, [-0.6, 0.0, 0.0], v, v, t, &P),
-            FrictionState::Slip
-        );
-        assert_eq!(
-            next_state(FrictionState::Slip, [0.0; 3], [0.0; 3], v, t, &P),
-            FrictionState::Slip
-        );
-        assert_eq!(
-            next_state(FrictionState::Slip, [0.0; 3], [0.0095, 0.0, 0.0], v, t, &P),
-            FrictionState::Stick
-        );
-        // Slow, but pulled harder than the static threshold: keeps slipping (no chatter).
-        assert_eq!(
-            next_state(
-                FrictionState::Slip,
-                [0.6, 0.0, 0.0],
-                [0.0095, 0.0, 0.0],
-                v,
-                t,
-                &P
-            ),
-            FrictionState::Slip
-        );
-        assert_eq!(
-            next_state(
-                FrictionState::Slip,
-                [0.3, 0.0, 0.0],
-                [0.0095, 0.0, 0.0],
-                v,
-                t,
-                &P
-            ),
-            FrictionState::Stick
-        );
+        assert_eq!(st(FrictionState::Stick, [0.4, 5.0, 0.0], v), FrictionState::Stick);
+        assert_eq!(st(FrictionState::Stick, [-0.6, 0.0, 0.0], v), FrictionState::Slip);
+        assert_eq!(st(FrictionState::Slip, [0.0; 3], [0.0; 3]), FrictionState::Slip);
+        let slow = [0.0095, 0.0, 0.0];
+        assert_eq!(st(FrictionState::Slip, [0.0; 3], slow), FrictionState::Stick);
+        // Slow, but pulled harder than the static threshold: keeps slipping.
+        assert_eq!(st(FrictionState::Slip, [0.6, 0.0, 0.0], slow), FrictionState::Slip);
+        assert_eq!(st(FrictionState::Slip, [0.3, 0.0, 0.0], slow), FrictionState::Stick);
     }
 
     #[test]
-    fn dynamic_friction_drags_along_the_needle_and_dissipates() {
+    fn paper_dynamic_friction_drags_along_the_needle_and_dissipates() {
         let t = [0.6, 0.8, 0.0];
         let mut s = 5u64;
         let mut r = move || {
@@ -216,8 +447,7 @@ mod tests {
         for _ in 0..200 {
             let f = [r(), r(), r()];
             let (vn, vd) = ([r(), r(), r()], [r(), r(), r()]);
-            let fd = dynamic_friction(f, vn, vd, t, &P);
-            // Along the shaft, dissipative, with the magnitude of the law.
+            let fd = paper_dynamic_friction(f, vn, vd, t, &P);
             let (along, normal) = split(fd, t);
             assert!(dot(normal, normal).sqrt() < 1e-12);
             assert!(dot(fd, sub(vn, vd)) <= 1e-15);
@@ -225,8 +455,99 @@ mod tests {
             let fnorm = dot(split(f, t).1, split(f, t).1).sqrt();
             assert!((along.abs() - (P.viscous * w.abs() + P.dynamic * fnorm)).abs() < 1e-12);
         }
-        // A needle pushed in (+t) relative to the node drags the node inwards.
-        let fd = dynamic_friction([0.0, 0.0, 1.0], [0.0; 3], [0.06, 0.08, 0.0], t, &P);
+        let fd = paper_dynamic_friction([0.0, 0.0, 1.0], [0.0; 3], [0.06, 0.08, 0.0], t, &P);
         assert!(dot(fd, t) > 0.0);
+    }
+
+    fn step(elastic: f64, velocity: f64, needle: f64) -> AxialStep {
+        AxialStep {
+            elastic,
+            velocity,
+            needle_velocity: needle,
+            mass: 0.01,
+            dt: 1e-3,
+            damping_factor: 1.0 / (1.0 + 1e-3 * 4.0),
+            gravity: 0.0,
+        }
+    }
+
+    /// The velocity the integrator gives a node after a step with friction `phi`.
+    fn after(s: &AxialStep, phi: f64) -> f64 {
+        s.damping_factor * (s.velocity + s.dt * ((s.elastic + phi) / s.mass + s.gravity))
+    }
+
+    #[test]
+    fn sticking_node_is_held_within_the_static_limit_and_slips_beyond() {
+        let lim = Limits::symmetric(0.2, 0.15, 0.0);
+        let s = step(-0.1, 0.02, 0.02);
+        assert_eq!(per_length_step(FrictionState::Stick, &s, &lim), (FrictionState::Stick, 0.1));
+        let s = step(-0.3, 0.02, 0.02);
+        assert_eq!(per_length_step(FrictionState::Stick, &s, &lim), (FrictionState::Slip, 0.15));
+        let s = step(0.3, 0.02, 0.02);
+        assert_eq!(per_length_step(FrictionState::Stick, &s, &lim), (FrictionState::Slip, -0.15));
+    }
+
+    /// A slipping node never overshoots the needle's speed: the relative velocity keeps
+    /// its sign or becomes exactly zero (re-stick), for any force, speed and limit, and the
+    /// friction force never has the sign of the relative velocity (it dissipates).
+    #[test]
+    fn slipping_node_never_flips_the_sign_of_its_relative_velocity() {
+        let mut seed = 11u64;
+        let mut r = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for _ in 0..2000 {
+            let s = step(r(), 0.1 * r(), 0.1 * r());
+            let lim = Limits {
+                static_forward: 0.0,
+                static_backward: 0.0,
+                kinetic_forward: 0.3 * (r() + 0.5),
+                kinetic_backward: 0.3 * (r() + 0.5),
+                viscous: 2.0 * (r() + 0.5),
+            };
+            let (state, phi) = per_length_step(FrictionState::Slip, &s, &lim);
+            let w_free = after(&s, 0.0) - s.needle_velocity;
+            let w = after(&s, phi) - s.needle_velocity;
+            match state {
+                FrictionState::Stick => {
+                    assert!(w.abs() < 1e-12, "re-stuck node moves at {w} relative");
+                    assert!(phi <= lim.kinetic_forward + 1e-12);
+                    assert!(phi >= -lim.kinetic_backward - 1e-12);
+                }
+                FrictionState::Slip => {
+                    assert!(w * w_free > 0.0, "relative velocity flipped: {w_free} -> {w}");
+                    assert!(phi * w <= 0.0, "friction {phi} feeds relative motion {w}");
+                    let k = if phi > 0.0 { lim.kinetic_forward } else { lim.kinetic_backward };
+                    assert!((phi.abs() - (k + lim.viscous * w.abs())).abs() < 1e-9);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn per_length_config_and_errors_name_the_key() {
+        let v: toml::Value = toml::from_str("coefficient = 0.4\ngrip = 50.0").unwrap();
+        let m = FrictionModel::from_value(&v).unwrap();
+        let FrictionModel::PerLength(p) = m else { panic!("{m:?}") };
+        assert_eq!((p.coefficient, p.grip, p.static_coefficient()), (0.4, Some(50.0), 0.4));
+        let v: toml::Value =
+            toml::from_str("model = \"paper\"\nstatic_threshold = 0.01\ndynamic = 0.2").unwrap();
+        assert!(matches!(FrictionModel::from_value(&v), Ok(FrictionModel::Paper(_))));
+        for (text, key) in [
+            ("grip = -1.0", "needle.friction.grip"),
+            ("coefficient = nan", "needle.friction.coefficient"),
+            ("coefficient = 0.4\nstatic_coefficient = 0.2", "needle.friction.static_coefficient"),
+            ("model = \"coulomb\"", "needle.friction.model"),
+            ("static_threshold = 0.01", "needle.friction (model = \"per_length\")"),
+        ] {
+            let v: toml::Value = toml::from_str(text).unwrap();
+            let (k, why) = FrictionModel::from_value(&v).unwrap_err();
+            assert_eq!(k, key, "{text}: {why}");
+        }
+        // Liver-like tissue, 18 G: pi * 0.635 mm * 5 kPa / (1 - 0.45^2) = 12.5 N/m.
+        assert!((grip_from_modulus(5e3, 0.45, 0.635e-3) - 12.507).abs() < 1e-3);
     }
 }

@@ -34,7 +34,7 @@ pub mod simulation;
 pub mod surface_query;
 
 pub use config::NeedleConfig;
-pub use friction::{FrictionParams, FrictionState};
+pub use friction::{FrictionModel, FrictionState, PaperFriction, PerLengthFriction};
 pub use needle::{Needle, NeedleError};
 pub use node_editor::{EditError, NodeEditor};
 pub use puncture::{PunctureState, Thresholds};

@@ -233,6 +233,80 @@ impl NodeEditor {
         v: [f32; 3],
         candidates: &[u32],
     ) -> Result<u32, EditError> {
+        self.add_node_with_offset(backend, x, v, candidates, [0.0; 3])
+    }
+
+    /// The offset of node `i` from where a rigid motion of its neighbourhood would put it,
+    /// `(x_i - C) - R (x0_i - C0)` over its live neighbours, m: the part of its position
+    /// that strains the tissue around it.
+    pub fn elastic_offset(
+        &self,
+        backend: &mut dyn Backend,
+        i: u32,
+    ) -> Result<[f64; 3], EditError> {
+        let mut nodes: Vec<u32> = self.nb.live(i as usize).map(|(_, j, _)| j as u32).collect();
+        nodes.push(i);
+        let mut pos = vec![[0.0f32; 4]; nodes.len()];
+        backend.read_nodes(NodeField::Position, &nodes, &mut pos)?;
+        let xi = pos.pop().expect("node itself");
+        nodes.pop();
+        if nodes.is_empty() {
+            return Ok([0.0; 3]);
+        }
+        let members: Vec<(u32, Vec4)> = nodes.into_iter().zip(pos).collect();
+        let (c, c0, rot, _) = self.frame(&members);
+        let r0 = self.rest[i as usize];
+        let d0: [f64; 3] = std::array::from_fn(|a| r0[a] as f64 - c0[a]);
+        Ok(std::array::from_fn(|row| {
+            xi[row] as f64 - c[row] - (0..3).map(|col| rot[row][col] as f64 * d0[col]).sum::<f64>()
+        }))
+    }
+
+    /// Centroids (current, rest) of `members` (index, current position) and the rotation
+    /// of the polar decomposition of `sum (x_j - C)(x0_j - C0)^T` (matrix and quaternion).
+    fn frame(&self, members: &[(u32, Vec4)]) -> ([f64; 3], [f64; 3], [[f32; 3]; 3], Vec4) {
+        let m = members.len() as f64;
+        let mut c = [0.0f64; 3];
+        let mut c0 = [0.0f64; 3];
+        for (j, p) in members {
+            let r = self.rest[*j as usize];
+            for a in 0..3 {
+                c[a] += p[a] as f64 / m;
+                c0[a] += r[a] as f64 / m;
+            }
+        }
+        let mut a_mat = [[0.0f64; 3]; 3];
+        let mut scale = 0.0f64;
+        for (j, p) in members {
+            let r = self.rest[*j as usize];
+            let d: [f64; 3] = std::array::from_fn(|a| p[a] as f64 - c[a]);
+            let d0: [f64; 3] = std::array::from_fn(|a| r[a] as f64 - c0[a]);
+            for row in 0..3 {
+                for col in 0..3 {
+                    a_mat[row][col] += d[row] * d0[col];
+                }
+            }
+            scale += d0.iter().map(|e| e * e).sum::<f64>();
+        }
+        let a32: [[f32; 3]; 3] = std::array::from_fn(|r| {
+            std::array::from_fn(|q| (a_mat[r][q] / scale.max(1e-300)) as f32)
+        });
+        let q = extract_rotation(&a32, QUAT_IDENTITY, 50);
+        (c, c0, quat_to_mat(q), q)
+    }
+
+    /// [`NodeEditor::add_node`] with an elastic offset (world frame, m): the rest position
+    /// is `C0 + R^T ((x - C) - offset)`, so that a node re-added in place of one with that
+    /// [`NodeEditor::elastic_offset`] strains the tissue around it as the old one did (the
+    /// needle's Tip node refresh keeps the load ahead of the tip this way).
+    pub fn add_node_with_offset(
+        &mut self,
+        backend: &mut dyn Backend,
+        x: [f32; 3],
+        v: [f32; 3],
+        candidates: &[u32],
+        offset: [f64; 3],
+    ) -> Result<u32, EditError> {
         if !x.iter().all(|c| c.is_finite()) {
             return Err(EditError::NonFinite(x));
         }
@@ -267,35 +341,9 @@ impl NodeEditor {
         near.truncate(k);
 
         // Steps 2 and 3: rotation of the neighbourhood, shape vector, rest position.
-        let m = near.len() as f64;
-        let mut c = [0.0f64; 3];
-        let mut c0 = [0.0f64; 3];
-        for (_, j, p) in &near {
-            let r = self.rest[*j as usize];
-            for a in 0..3 {
-                c[a] += p[a] as f64 / m;
-                c0[a] += r[a] as f64 / m;
-            }
-        }
-        let mut a_mat = [[0.0f64; 3]; 3];
-        let mut scale = 0.0f64;
-        for (_, j, p) in &near {
-            let r = self.rest[*j as usize];
-            let d: [f64; 3] = std::array::from_fn(|a| p[a] as f64 - c[a]);
-            let d0: [f64; 3] = std::array::from_fn(|a| r[a] as f64 - c0[a]);
-            for row in 0..3 {
-                for col in 0..3 {
-                    a_mat[row][col] += d[row] * d0[col];
-                }
-            }
-            scale += d0.iter().map(|e| e * e).sum::<f64>();
-        }
-        let a32: [[f32; 3]; 3] = std::array::from_fn(|r| {
-            std::array::from_fn(|q| (a_mat[r][q] / scale.max(1e-300)) as f32)
-        });
-        let q = extract_rotation(&a32, QUAT_IDENTITY, 50);
-        let rot = quat_to_mat(q);
-        let d: [f64; 3] = std::array::from_fn(|a| x[a] as f64 - c[a]);
+        let members: Vec<(u32, Vec4)> = near.iter().map(|(_, j, p)| (*j, *p)).collect();
+        let (c, c0, rot, q) = self.frame(&members);
+        let d: [f64; 3] = std::array::from_fn(|a| x[a] as f64 - c[a] - offset[a]);
         // v = R^T d
         let v_shape: [f64; 3] =
             std::array::from_fn(|col| (0..3).map(|row| rot[row][col] as f64 * d[row]).sum());

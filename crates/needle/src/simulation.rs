@@ -5,36 +5,54 @@
 //! One step ([`Simulation::step`]):
 //! 1. the needle moves to its pose at `t + dt` (script or [`Simulation::set_pose`]);
 //! 2. contact: Outside tests the segment swept by the tip against the entering side of the
-//!    surface triangles near it; Touching compares the mean cone angle with the thresholds;
-//!    Inside adds or removes needle nodes and refreshes the Tip node (below);
-//! 3. needle nodes are constrained: a sticking node (and the Tip node, and the Surface node
-//!    while Touching) moves rigidly with the needle (inverse mass 0, the needle's velocity);
-//!    a slipping node is projected onto the shaft and keeps only its axial velocity
-//!    relative to the needle;
+//!    surface triangles near it; Touching compares the mean cone angle (or the force) with
+//!    the thresholds; Inside adds or removes needle nodes, refreshes the Tip node and tests
+//!    the tip against the leaving side of the surface (the far side);
+//! 3. needle nodes are constrained: a sticking node (and the Surface node while Touching)
+//!    moves rigidly with the needle (inverse mass 0, the needle's velocity); a slipping
+//!    node is projected onto the shaft and keeps only its axial velocity relative to the
+//!    needle;
 //! 4. elastic forces; only the needle nodes' forces are read back;
-//! 5. friction (paper 5.3): sticking nodes that exceed the static threshold slip; slipping
-//!    nodes get the axial elastic force plus the dynamic friction force (the normal part is
-//!    taken by the shaft) and stick again below the stick speed. The needle force is the
-//!    sum of what the nodes exert on the needle: the elastic force of every sticking node,
-//!    and the normal force minus the friction force of every slipping node;
+//! 5. friction ([`crate::friction`]): each node's axial force from the needle, its normal
+//!    force taken by the shaft. The needle force is the sum of what the nodes exert on the
+//!    needle: the elastic force of a pinned node, and the normal force minus the friction
+//!    (and cutting) force of every other node;
 //! 6. integration.
 //!
-//! Only needle node rows cross between host and device each step (plus, while Outside
-//! near the surface, the corners of the few candidate triangles).
+//! Only needle node rows cross between host and device each step (plus, near the surface,
+//! the corners of the few candidate triangles).
 //!
 //! Needle nodes (a stack, removed in reverse order of addition): the Surface node where
 //! the tip first touched; Shaft nodes, one per spacing h of insertion; the Tip node at the
-//! tip. Inside, with `d` the axial distance from the last non-tip node to the tip: a Shaft
-//! node is added at `h` past the last node when `d >= 1.5 h` (so it never lands on the Tip
-//! node), the last Shaft node is removed when `d < h / 2`, the Tip node exists while
-//! `d >= h / 4` past the Surface node (added at `h / 2`), and is removed and re-added
-//! (neighbour refresh, which also relaxes the tissue ahead of the tip: cutting) every
-//! `tip_refresh * h` of tip motion. The needle is back Outside when the tip is pulled
-//! back past the Surface node. The paper adds nodes at the tip when `d > h`; the margins
-//! here keep any two needle nodes at least h / 4 apart.
+//! tip; the Exit node where the tip reached the far surface. Inside, with `d` the axial
+//! distance from the last non-tip node to the tip: a Shaft node is added at `h` past the
+//! last node when `d >= 1.5 h` (so it never lands on the Tip node), the last Shaft node is
+//! removed when `d < h / 2`, the Tip node exists while `d >= h / 4` past the Surface node
+//! (added at `h / 2`), and is removed and re-added (neighbour refresh) every
+//! `tip_refresh * h` of tip motion. The paper adds nodes at the tip when `d > h`; the
+//! margins here keep any two needle nodes at least h / 4 apart.
+//!
+//! With the per-length friction model, nodes added inside the tissue start slipping with
+//! the velocity of the tissue at the tip (the shaft slides past the tissue it reaches), and
+//! a refreshed Tip node keeps its friction state and velocity: the load the tip carries
+//! (cutting force, friction) is not released by a refresh, so the force has no sawtooth at
+//! the refresh period.
+//!
+//! The far side: when the tip leaves the body through its surface, the Tip node is
+//! replaced by an Exit node pinned to the tip (state Touching: the surface dents outwards)
+//! until the same puncture rule fires; then the tip is Outside past the body while the
+//! shaft nodes stay on the needle. Pulled back past the Exit node, the tip re-enters
+//! (Inside) through its hole. A tip that leaves the body again elsewhere after exiting is
+//! not detected (one entry and one exit per needle path).
+//!
+//! A needle node that the tissue pushes ahead of an advancing tip (the shaft no longer
+//! holding the tissue it is in) stops the run with [`SimulationError::NodesLost`].
 
 use crate::config::NeedleConfig;
-use crate::friction::{dynamic_friction, next_state, split, FrictionParams, FrictionState};
+use crate::friction::{
+    grip_from_modulus, paper_dynamic_friction, paper_next_state, per_length_step, split,
+    AxialStep, FrictionModel, FrictionState, Limits, PerLengthFriction,
+};
 use crate::needle::Needle;
 use crate::node_editor::{EditError, NodeEditor};
 use crate::puncture::{
@@ -42,7 +60,9 @@ use crate::puncture::{
 };
 use crate::script::PoseScript;
 use crate::surface_query::{segment_triangle, TriangleGrid};
+use needlesim_core::integrator::StepParams;
 use needlesim_core::math::Vec4;
+use needlesim_core::scene::Material;
 use needlesim_core::{geometry, Backend, NodeField, Scene, SceneError, SimError, Tissue};
 use thiserror::Error;
 
@@ -77,6 +97,24 @@ pub enum SimulationError {
         /// Slots of the backend given.
         got: usize,
     },
+    /// The needle stopped holding the tissue it is in: a needle node was pushed ahead of
+    /// the advancing tip (for example by a friction law that drives nodes faster than the
+    /// needle), which would let the needle pass through the tissue unnoticed.
+    #[error(
+        "step {step}: needle node {node} ({role:?}) was pushed {ahead:.3e} m ahead of the \
+         advancing tip: the needle no longer holds the tissue it is in (lower the friction \
+         or the speed, or refine the time step)"
+    )]
+    NodesLost {
+        /// Step at which it happened.
+        step: u64,
+        /// Node index.
+        node: u32,
+        /// Its role.
+        role: NodeRole,
+        /// How far past the point where it should be, m.
+        ahead: f64,
+    },
 }
 
 /// Role of a needle node.
@@ -88,6 +126,8 @@ pub enum NodeRole {
     Shaft,
     /// At the needle tip.
     Tip,
+    /// Where the tip reached the far surface from inside.
+    Exit,
 }
 
 /// A needle node.
@@ -136,6 +176,44 @@ pub struct NeedleSample {
     pub needle_nodes: usize,
 }
 
+/// Where the needle is in its path through the body (the public [`PunctureState`] is the
+/// tip's view of it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// No contact.
+    Outside,
+    /// Denting the entry surface.
+    Touching,
+    /// Tip inside.
+    Inside,
+    /// Denting the far surface from inside.
+    ExitTouching,
+    /// Tip out past the far surface, shaft inside.
+    Exited,
+}
+
+impl Phase {
+    fn state(self) -> PunctureState {
+        match self {
+            Phase::Outside | Phase::Exited => PunctureState::Outside,
+            Phase::Touching | Phase::ExitTouching => PunctureState::Touching,
+            Phase::Inside => PunctureState::Inside,
+        }
+    }
+}
+
+/// The needle parameters a step uses, resolved from the scene.
+#[derive(Debug, Clone, Copy)]
+struct Contact {
+    friction: FrictionModel,
+    /// Grip of the per-length model, N/m.
+    grip: f64,
+    cutting: f64,
+    thresholds: crate::Thresholds,
+    puncture_force: Option<f64>,
+    refresh: f64,
+}
+
 /// A tissue built for a needle scene, waiting for a backend.
 pub struct Prepared {
     /// The tissue with needle node slots; give it to a backend.
@@ -143,6 +221,7 @@ pub struct Prepared {
     editor: NodeEditor,
     config: Option<NeedleConfig>,
     spacing: f64,
+    grip: f64,
     rest: Vec<[f64; 3]>,
     guard: (f64, u64),
 }
@@ -159,42 +238,54 @@ impl Prepared {
         }
         let triangles = self.tissue.triangles.clone();
         let grid = TriangleGrid::build(&self.rest, &triangles, 2.0 * self.spacing);
-        let (needle, script, friction, thresholds, refresh) = match &self.config {
+        let (needle, script, contact) = match &self.config {
             Some(c) => (
                 Some(c.start()?),
                 c.script().ok().flatten(),
-                c.friction,
-                c.thresholds,
-                c.tip_refresh,
+                Contact {
+                    friction: c.friction,
+                    grip: self.grip,
+                    cutting: c.cutting,
+                    thresholds: c.thresholds,
+                    puncture_force: c.puncture_force,
+                    refresh: c.tip_refresh * self.spacing,
+                },
             ),
             None => (
                 None,
                 None,
-                FrictionParams::default(),
-                Default::default(),
-                0.1,
+                Contact {
+                    friction: FrictionModel::default(),
+                    grip: 0.0,
+                    cutting: 0.0,
+                    thresholds: Default::default(),
+                    puncture_force: None,
+                    refresh: 0.1 * self.spacing,
+                },
             ),
         };
         Ok(Simulation {
             dt: self.tissue.step.dt as f64,
+            params: self.tissue.step,
             backend,
             editor: self.editor,
             needle,
             prev: needle,
             script,
-            friction,
-            thresholds,
-            refresh: refresh * self.spacing,
+            contact,
             spacing: self.spacing,
             triangles,
             grid,
-            split: None,
-            state: PunctureState::Outside,
+            splits: Vec::new(),
+            phase: Phase::Outside,
             nodes: Vec::new(),
             velocities: Vec::new(),
             positions: Vec::new(),
             tip_placed: [0.0; 3],
+            swept_from: [0.0; 3],
             entry: None,
+            cut_depth: f64::NEG_INFINITY,
+            pinned_axial: 0.0,
             time: 0.0,
             steps: 0,
             force: NeedleForce::default(),
@@ -210,27 +301,33 @@ impl Prepared {
 /// Needle insertion into a tissue on any backend.
 pub struct Simulation {
     dt: f64,
+    params: StepParams,
     backend: Box<dyn Backend>,
     editor: NodeEditor,
     needle: Option<Needle>,
     /// The pose at the end of the last step.
     prev: Option<Needle>,
     script: Option<PoseScript>,
-    friction: FrictionParams,
-    thresholds: crate::Thresholds,
-    refresh: f64,
+    contact: Contact,
     spacing: f64,
     triangles: Vec<[u32; 3]>,
     grid: TriangleGrid,
-    split: Option<Split>,
-    state: PunctureState,
+    /// The entry split, then the exit split.
+    splits: Vec<Split>,
+    phase: Phase,
     nodes: Vec<NeedleNode>,
     /// Velocities written to the needle nodes this step.
     velocities: Vec<Vec4>,
     /// Positions written to the needle nodes this step.
     positions: Vec<Vec4>,
     tip_placed: [f64; 3],
+    /// The tip at the start of this step's sweep.
+    swept_from: [f64; 3],
     entry: Option<[f64; 3]>,
+    /// Deepest tip depth past the entry so far (the crack front), m.
+    cut_depth: f64,
+    /// Axial force of the pinned (Surface or Exit) node on the needle in the last step, N.
+    pinned_axial: f64,
     time: f64,
     steps: u64,
     force: NeedleForce,
@@ -257,6 +354,49 @@ fn xyz(p: Vec4) -> [f64; 3] {
 fn f32x3(p: [f64; 3]) -> [f32; 3] {
     p.map(|x| x as f32)
 }
+fn vec4(p: [f64; 3], w: f32) -> Vec4 {
+    [p[0] as f32, p[1] as f32, p[2] as f32, w]
+}
+
+/// The grip per unit length (N/m) of the per-length friction model: the scene's
+/// `friction.grip`, or from the material's Young's modulus (for mass-spring and shape
+/// matching, the one their calibrated stiffness gives at the mesh spacing `h`).
+fn resolve_grip(scene: &Scene, c: &NeedleConfig, h: f64) -> Result<f64, SceneError> {
+    let FrictionModel::PerLength(PerLengthFriction { grip, .. }) = c.friction else {
+        return Ok(0.0);
+    };
+    if let Some(g) = grip {
+        return Ok(g);
+    }
+    use needlesim_core::calibration::calibration;
+    let k = scene.tissue.neighbours;
+    let uncalibrated = |e: needlesim_core::calibration::UncalibratedNeighbours| {
+        SceneError::invalid(
+            "needle.friction.grip",
+            format!("cannot be derived from this material's stiffness ({e}); give it in N/m"),
+        )
+    };
+    // Mass-spring's lattice Poisson ratio is about 1/4; cluster shape matching's lateral
+    // contraction is about 0 (docs/report).
+    let (young, nu) = match scene.material {
+        Material::DebunneMeshfree(p) => (p.young_modulus, p.poisson_ratio),
+        Material::PointBased(p) => (p.young_modulus, p.poisson_ratio),
+        Material::MassSpring(p) => {
+            let cal = calibration(k).map_err(uncalibrated)?;
+            (p.stiffness / (cal.mass_spring * h), 0.25)
+        }
+        Material::LocalShapeMatching(p) => {
+            let cal = calibration(k).map_err(uncalibrated)?;
+            let c = if p.forces == needlesim_core::scene::ShapeMatchingForces::Cluster {
+                cal.shape_matching_cluster
+            } else {
+                cal.shape_matching_node
+            };
+            (p.stiffness / (c * h), 0.0)
+        }
+    };
+    Ok(grip_from_modulus(young, nu, c.radius))
+}
 
 impl Simulation {
     /// Builds the tissue of `scene` with room for the needle nodes its `[needle]` table
@@ -274,6 +414,13 @@ impl Simulation {
             .as_ref()
             .and_then(|c| c.spacing)
             .unwrap_or(mesh_spacing);
+        let grip = match &config {
+            Some(c) => {
+                c.check_radius(spacing)?;
+                resolve_grip(scene, c, mesh_spacing)?
+            }
+            None => 0.0,
+        };
         let extra = config.as_ref().map_or(0, |c| c.node_slots(spacing));
         let tissue = Tissue::from_cloud(scene, cloud, extra)?;
         let editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
@@ -282,6 +429,7 @@ impl Simulation {
             editor,
             config,
             spacing,
+            grip,
             rest,
             guard: (scene.physics.max_speed, scene.physics.check_every),
         })
@@ -311,9 +459,21 @@ impl Simulation {
         Ok(())
     }
 
-    /// The puncture state.
+    /// The puncture state: where the tip is (Outside also past the far surface, with the
+    /// shaft still in the tissue: see [`Simulation::needle_nodes`]).
     pub fn state(&self) -> PunctureState {
-        self.state
+        self.phase.state()
+    }
+
+    /// Whether the tip has left the body through its far surface (state Outside with the
+    /// shaft inside) or is denting it from inside (Touching).
+    pub fn through_far_side(&self) -> bool {
+        matches!(self.phase, Phase::ExitTouching | Phase::Exited)
+    }
+
+    /// The grip per unit length of the per-length friction model, N/m (0 for the paper's).
+    pub fn grip(&self) -> f64 {
+        self.contact.grip
     }
 
     /// The needle nodes, oldest first.
@@ -436,9 +596,7 @@ impl Simulation {
         // caller moved the needle with `set_pose` in between.
         let now = self.needle.expect("needle present");
         self.prev = Some(now);
-        let step = self.steps;
-        let edit = |source| SimulationError::Edit { step, source };
-        self.contact(&prev, &now).map_err(edit)?;
+        self.contact(&prev, &now)?;
         self.constrain(&prev, &now)?;
         self.backend.compute_forces();
         self.apply_friction(&prev, &now)?;
@@ -455,12 +613,19 @@ impl Simulation {
                 tip: now.tip(),
                 direction: now.direction(),
                 force: self.force,
-                state: self.state,
+                state: self.state(),
                 active_nodes: self.backend.n_active(),
                 needle_nodes: self.nodes.len(),
             });
         }
         Ok(())
+    }
+
+    fn per_length(&self) -> Option<PerLengthFriction> {
+        match self.contact.friction {
+            FrictionModel::PerLength(p) => Some(p),
+            FrictionModel::Paper(_) => None,
+        }
     }
 
     /// Velocity of the needle point at axial coordinate `s` over the last step.
@@ -477,6 +642,14 @@ impl Simulation {
         Ok(buf.into_iter().map(xyz).collect())
     }
 
+    fn node_velocity(&mut self, k: usize) -> Result<[f64; 3], SimError> {
+        let i = self.nodes[k].index as usize;
+        let mut v = [[0.0f32; 4]];
+        self.backend.read(NodeField::Velocity, i..i + 1, &mut v)?;
+        Ok(xyz(v[0]))
+    }
+
+    #[allow(clippy::too_many_arguments)]
     fn add(
         &mut self,
         role: NodeRole,
@@ -484,15 +657,34 @@ impl Simulation {
         s: f64,
         seeds: &[u32],
         v: [f64; 3],
+        friction: FrictionState,
+    ) -> Result<(), EditError> {
+        self.add_with_offset(role, x, s, seeds, v, friction, [0.0; 3])
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn add_with_offset(
+        &mut self,
+        role: NodeRole,
+        x: [f64; 3],
+        s: f64,
+        seeds: &[u32],
+        v: [f64; 3],
+        friction: FrictionState,
+        offset: [f64; 3],
     ) -> Result<(), EditError> {
         let cand = self.editor.rings(seeds, 2);
-        let index = self
-            .editor
-            .add_node(self.backend.as_mut(), f32x3(x), f32x3(v), &cand)?;
+        let index = self.editor.add_node_with_offset(
+            self.backend.as_mut(),
+            f32x3(x),
+            f32x3(v),
+            &cand,
+            offset,
+        )?;
         self.nodes.push(NeedleNode {
             index,
             role,
-            friction: FrictionState::Stick,
+            friction,
             s,
         });
         Ok(())
@@ -501,11 +693,15 @@ impl Simulation {
     fn remove(&mut self) -> Result<NeedleNode, EditError> {
         self.editor.remove_last(self.backend.as_mut())?;
         let node = self.nodes.pop().ok_or(EditError::NothingToRemove)?;
-        if node.role == NodeRole::Surface {
-            if let Some(sp) = self.split.take() {
+        if matches!(node.role, NodeRole::Surface | NodeRole::Exit) {
+            if let Some(sp) = self.splits.pop() {
                 self.unsplit(&sp);
             }
-            self.state = PunctureState::Outside;
+            self.phase = if node.role == NodeRole::Surface {
+                Phase::Outside
+            } else {
+                Phase::Inside
+            };
         }
         Ok(node)
     }
@@ -519,86 +715,148 @@ impl Simulation {
         self.grid.insert(sp.triangle as u32, corners);
     }
 
+    /// Splits triangle `id` around the newest needle node.
+    fn split_at_last(&mut self, id: usize) {
+        let node = self.nodes.last().expect("just added").index;
+        let sp = split_triangle(&mut self.triangles, id, node);
+        self.grid.remove(id as u32);
+        for tid in [id, sp.appended_at, sp.appended_at + 1] {
+            let c = self.triangles[tid].map(|v| self.rest_of(v));
+            self.grid.insert(tid as u32, c);
+        }
+        self.splits.push(sp);
+    }
+
     fn rest_of(&self, v: u32) -> [f64; 3] {
         self.editor.rest_position(v as usize).map(|x| x as f64)
     }
 
+    fn edit(&self, source: EditError) -> SimulationError {
+        SimulationError::Edit {
+            step: self.steps,
+            source,
+        }
+    }
+
     /// The state machine: surface contact, puncture, node addition and removal.
-    fn contact(&mut self, prev: &Needle, now: &Needle) -> Result<(), EditError> {
+    fn contact(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimulationError> {
         let t = now.direction();
         let tip = now.tip();
         let v_tip = self.needle_velocity(prev, now, now.length());
-        match self.state {
-            PunctureState::Outside => {
-                let Some((id, point)) = self.surface_entry(prev.tip(), tip)? else {
+        self.swept_from = prev.tip();
+        match self.phase {
+            Phase::Outside => {
+                let hit = self
+                    .surface_crossing(prev.tip(), tip, true)
+                    .map_err(|e| self.edit(e.into()))?;
+                let Some((id, point)) = hit else {
                     return Ok(());
                 };
                 let corners = self.triangles[id];
                 let s = dot(sub(point, now.base()), t);
-                self.add(NodeRole::Surface, point, s, &corners, v_tip)?;
-                let node = self.nodes.last().expect("just added").index;
-                let sp = split_triangle(&mut self.triangles, id, node);
-                self.grid.remove(id as u32);
-                for tid in [id, sp.appended_at, sp.appended_at + 1] {
-                    let c = self.triangles[tid].map(|v| {
-                        if v == node {
-                            self.editor.rest_position(v as usize).map(|x| x as f64)
-                        } else {
-                            self.rest_of(v)
-                        }
-                    });
-                    self.grid.insert(tid as u32, c);
-                }
-                self.split = Some(sp);
+                self.add(NodeRole::Surface, point, s, &corners, v_tip, FrictionState::Stick)
+                    .map_err(|e| self.edit(e))?;
+                self.split_at_last(id);
                 self.entry.get_or_insert(point);
-                self.state = PunctureState::Touching;
+                self.phase = Phase::Touching;
             }
-            PunctureState::Touching => {
-                let sp = self.split.expect("Touching has a split triangle");
+            Phase::Touching | Phase::ExitTouching => {
+                let exit = self.phase == Phase::ExitTouching;
+                let sp = *self.splits.last().expect("Touching has a split triangle");
                 let mut c = [[0.0f32; 4]; 3];
                 self.backend
-                    .read_nodes(NodeField::Position, &sp.original, &mut c)?;
-                let surface = at(now, self.nodes[0].s);
-                let angle = mean_cone_angle(surface, c.map(xyz), t);
-                match self.thresholds.touching(angle) {
-                    TouchingOutcome::Stay => {}
-                    TouchingOutcome::Release => {
-                        self.remove()?;
+                    .read_nodes(NodeField::Position, &sp.original, &mut c)
+                    .map_err(|e| self.edit(e.into()))?;
+                let pinned = at(now, self.nodes.last().expect("pinned node").s);
+                let angle = mean_cone_angle(pinned, c.map(xyz), t);
+                let mut outcome = self.contact.thresholds.touching(angle);
+                if let Some(f) = self.contact.puncture_force {
+                    outcome = match outcome {
+                        TouchingOutcome::Release => TouchingOutcome::Release,
+                        _ if self.pinned_axial > f => TouchingOutcome::Puncture,
+                        _ => TouchingOutcome::Stay,
+                    };
+                }
+                match (outcome, exit) {
+                    (TouchingOutcome::Stay, _) => {}
+                    (TouchingOutcome::Release, false) => {
+                        self.remove().map_err(|e| self.edit(e))?;
                     }
-                    TouchingOutcome::Puncture => {
-                        self.state = PunctureState::Inside;
-                        self.nodes[0].friction = FrictionState::Slip;
+                    (TouchingOutcome::Release, true) => {
+                        self.remove().map_err(|e| self.edit(e))?;
                         self.inside(now, v_tip)?;
+                    }
+                    (TouchingOutcome::Puncture, false) => {
+                        self.phase = Phase::Inside;
+                        self.nodes[0].friction = FrictionState::Slip;
+                        self.cut_depth = self.depth_of(tip, t);
+                        self.inside(now, v_tip)?;
+                    }
+                    (TouchingOutcome::Puncture, true) => {
+                        self.phase = Phase::Exited;
+                        self.nodes.last_mut().expect("exit node").friction = FrictionState::Slip;
+                        self.exited(now, v_tip)?;
                     }
                 }
             }
-            PunctureState::Inside => self.inside(now, v_tip)?,
+            Phase::Inside => self.inside(now, v_tip)?,
+            Phase::Exited => self.exited(now, v_tip)?,
         }
         Ok(())
     }
 
-    /// Inside: keep a Shaft node per spacing and the Tip node at the tip.
-    fn inside(&mut self, now: &Needle, v_tip: [f64; 3]) -> Result<(), EditError> {
+    /// Tip past the far surface: only the Exit node is checked; the tip re-enters when
+    /// pulled back behind it.
+    fn exited(&mut self, now: &Needle, v_tip: [f64; 3]) -> Result<(), SimulationError> {
+        let pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
+        let d = dot(sub(now.tip(), *pos.last().expect("exit node")), now.direction());
+        self.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
+        if d < 0.0 {
+            self.remove().map_err(|e| self.edit(e))?;
+            self.inside(now, v_tip)?;
+        }
+        Ok(())
+    }
+
+    /// Inside: keep a Shaft node per spacing and the Tip node at the tip; detect the far
+    /// surface.
+    fn inside(&mut self, now: &Needle, v_tip: [f64; 3]) -> Result<(), SimulationError> {
         let (t, tip, h) = (now.direction(), now.tip(), self.spacing);
-        let mut pos = self.node_positions()?;
+        let advancing = dot(v_tip, t) > 0.0;
+        let per_length = self.per_length().is_some();
+        let mut pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
         let mut edited = false;
+        let mut carried = None;
+        let seeds = |nodes: &[NeedleNode]| -> Vec<u32> {
+            nodes.iter().rev().take(2).map(|n| n.index).collect()
+        };
         loop {
             let has_tip = self.nodes.last().is_some_and(|n| n.role == NodeRole::Tip);
             let last = self.nodes.len() - 1 - has_tip as usize;
             let role = self.nodes[last].role;
             let d = dot(sub(tip, pos[last]), t);
-            let seeds = |nodes: &[NeedleNode]| -> Vec<u32> {
-                nodes.iter().rev().take(2).map(|n| n.index).collect()
-            };
             if has_tip && (d >= 1.5 * h || (role == NodeRole::Shaft && d < 0.5 * h) || d < 0.25 * h)
             {
-                self.remove()?;
+                // Taken off to edit the shaft behind it: re-added below with its load.
+                if carried.is_none() {
+                    carried = Some(self.tip_load()?);
+                }
+                self.remove().map_err(|e| self.edit(e))?;
                 pos.pop();
                 edited = true;
                 continue;
             }
+            let lost = |sim: &Self, ahead: f64| SimulationError::NodesLost {
+                step: sim.steps,
+                node: sim.nodes[last].index,
+                role,
+                ahead,
+            };
             if role == NodeRole::Shaft && d < 0.5 * h {
-                self.remove()?;
+                if advancing && d < 0.0 {
+                    return Err(lost(self, -d));
+                }
+                self.remove().map_err(|e| self.edit(e))?;
                 pos.pop();
                 edited = true;
                 continue;
@@ -606,56 +864,145 @@ impl Simulation {
             if d >= 1.5 * h {
                 let s = dot(sub(pos[last], now.base()), t) + h;
                 let x = at(now, s);
-                let seeds = seeds(&self.nodes);
-                self.add(NodeRole::Shaft, x, s, &seeds, v_tip)?;
+                let (v, state) = self.new_node_motion(has_tip, v_tip)?;
+                let sd = seeds(&self.nodes);
+                self.add(NodeRole::Shaft, x, s, &sd, v, state)
+                    .map_err(|e| self.edit(e))?;
                 pos.push(x);
                 edited = true;
                 continue;
             }
             if !has_tip && d >= 0.5 * h {
-                let seeds = seeds(&self.nodes);
-                self.add(NodeRole::Tip, tip, now.length(), &seeds, v_tip)?;
+                let sd = seeds(&self.nodes);
+                let (state, v, offset) = match carried.take() {
+                    Some(load) => load,
+                    // The first Tip node takes over the crack front from the deepest node:
+                    // it strains the tissue ahead as that node did.
+                    None if per_length => {
+                        let front = self.nodes[last].index;
+                        let o = self
+                            .editor
+                            .elastic_offset(self.backend.as_mut(), front)
+                            .map_err(|e| self.edit(e))?;
+                        (FrictionState::Slip, v_tip, o)
+                    }
+                    None => (FrictionState::Stick, v_tip, [0.0; 3]),
+                };
+                self.add_with_offset(NodeRole::Tip, tip, now.length(), &sd, v, state, offset)
+                    .map_err(|e| self.edit(e))?;
                 pos.push(tip);
                 self.tip_placed = tip;
                 edited = true;
                 continue;
             }
             if role == NodeRole::Surface && !has_tip && d < 0.0 {
-                self.remove()?;
+                if advancing {
+                    return Err(lost(self, -d));
+                }
+                self.remove().map_err(|e| self.edit(e))?;
                 return Ok(());
             }
             break;
         }
         let has_tip = self.nodes.last().is_some_and(|n| n.role == NodeRole::Tip);
         let moved = sub(tip, self.tip_placed);
-        if has_tip && !edited && dot(moved, moved).sqrt() > self.refresh {
-            let seeds: Vec<u32> = self.nodes.iter().rev().take(2).map(|n| n.index).collect();
-            self.remove()?;
-            self.add(NodeRole::Tip, tip, now.length(), &seeds, v_tip)?;
+        if has_tip && !edited && dot(moved, moved).sqrt() > self.contact.refresh {
+            // The refreshed Tip node keeps the load it carried: its friction state and,
+            // with the per-length model, the tissue's velocity.
+            // It also keeps its strain of the tissue around it (its elastic offset), so
+            // that the load ahead of the tip is carried on, not released.
+            let (state, v, offset) = self.tip_load()?;
+            let v = if per_length { v } else { v_tip };
+            let sd = seeds(&self.nodes);
+            self.remove().map_err(|e| self.edit(e))?;
+            self.add_with_offset(NodeRole::Tip, tip, now.length(), &sd, v, state, offset)
+                .map_err(|e| self.edit(e))?;
             self.tip_placed = tip;
             pos.pop();
             pos.push(tip);
         }
+        // The far side: the tip leaving the body through a surface triangle.
+        let prev_tip = self.swept_from;
+        if advancing {
+            if let Some((id, point)) = self
+                .surface_crossing(prev_tip, tip, false)
+                .map_err(|e| self.edit(e.into()))?
+            {
+                if self.nodes.last().is_some_and(|n| n.role == NodeRole::Tip) {
+                    self.remove().map_err(|e| self.edit(e))?;
+                    pos.pop();
+                }
+                let corners = self.triangles[id];
+                let s = dot(sub(point, now.base()), t);
+                self.add(NodeRole::Exit, point, s, &corners, v_tip, FrictionState::Stick)
+                    .map_err(|e| self.edit(e))?;
+                self.split_at_last(id);
+                pos.push(point);
+                self.phase = Phase::ExitTouching;
+            }
+        }
         // What the needle nodes' positions are now, so that `constrain` need not read
         // them back again.
-        self.positions = pos
-            .iter()
-            .map(|x| [x[0] as f32, x[1] as f32, x[2] as f32, 0.0])
-            .collect();
+        self.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
         Ok(())
     }
 
-    /// The first surface triangle entered (from outside) by the segment `p0 -> p1`, and
-    /// where.
-    fn surface_entry(
+    /// What the Tip node (the last node) carries into its replacement: its friction state,
+    /// velocity and, with the per-length model, its elastic offset (the paper's refresh
+    /// places it strain-free).
+    fn tip_load(&mut self) -> Result<(FrictionState, [f64; 3], [f64; 3]), SimulationError> {
+        let k = self.nodes.len() - 1;
+        let state = self.nodes[k].friction;
+        let v = self.node_velocity(k).map_err(|e| self.edit(e.into()))?;
+        let offset = if self.per_length().is_some() {
+            self.editor
+                .elastic_offset(self.backend.as_mut(), self.nodes[k].index)
+                .map_err(|e| self.edit(e))?
+        } else {
+            [0.0; 3]
+        };
+        Ok((state, v, offset))
+    }
+
+    /// Velocity and friction state of a Shaft node added inside: with the per-length
+    /// model, the tissue's velocity at the tip (the Tip node's) and slipping; with the
+    /// paper's, the needle's and sticking.
+    fn new_node_motion(
+        &mut self,
+        has_tip: bool,
+        v_tip: [f64; 3],
+    ) -> Result<([f64; 3], FrictionState), SimulationError> {
+        if self.per_length().is_none() {
+            return Ok((v_tip, FrictionState::Stick));
+        }
+        let k = self.nodes.len() - 1;
+        let v = if has_tip {
+            self.node_velocity(k).map_err(|e| self.edit(e.into()))?
+        } else {
+            v_tip
+        };
+        Ok((v, FrictionState::Slip))
+    }
+
+    /// The first surface triangle crossed by the segment `p0 -> p1`, from outside
+    /// (`entering`) or from inside, and where. Triangles around needle nodes (the entry
+    /// split) are skipped when leaving.
+    fn surface_crossing(
         &mut self,
         p0: [f64; 3],
         p1: [f64; 3],
+        entering: bool,
     ) -> Result<Option<(usize, [f64; 3])>, SimError> {
         if p0 == p1 {
             return Ok(None);
         }
-        let cand = self.grid.candidates(p0, p1);
+        let needle_nodes: Vec<u32> = self.nodes.iter().map(|n| n.index).collect();
+        let mut cand = self.grid.candidates(p0, p1);
+        cand.retain(|&c| {
+            !self.triangles[c as usize]
+                .iter()
+                .any(|v| needle_nodes.contains(v))
+        });
         if cand.is_empty() {
             return Ok(None);
         }
@@ -683,7 +1030,7 @@ impl Simulation {
                 e1[2] * e2[0] - e1[0] * e2[2],
                 e1[0] * e2[1] - e1[1] * e2[0],
             ];
-            if dot(nrm, seg) >= 0.0 {
+            if (dot(nrm, seg) < 0.0) != entering {
                 continue;
             }
             if best.is_none_or(|(bs, _, _)| s < bs) {
@@ -694,10 +1041,18 @@ impl Simulation {
         Ok(best.map(|(_, id, hit)| (id, hit)))
     }
 
+    /// Whether node `n` is held rigidly on the needle this step.
     fn kinematic(&self, n: &NeedleNode) -> bool {
-        n.role == NodeRole::Tip
-            || (n.role == NodeRole::Surface && self.state == PunctureState::Touching)
+        self.pinned(n)
             || n.friction == FrictionState::Stick
+            || (n.role == NodeRole::Tip && self.per_length().is_none())
+    }
+
+    /// The Surface node while Touching the entry, the Exit node while Touching the far
+    /// surface: pinned to the tip in every direction.
+    fn pinned(&self, n: &NeedleNode) -> bool {
+        (n.role == NodeRole::Surface && self.phase == Phase::Touching)
+            || (n.role == NodeRole::Exit && self.phase == Phase::ExitTouching)
     }
 
     /// Puts sticking nodes on the needle and slipping nodes onto the shaft.
@@ -728,21 +1083,15 @@ impl Simulation {
             if self.kinematic(&node) {
                 let x = at(now, node.s);
                 let vn = self.needle_velocity(prev, now, node.s);
-                p[k] = [x[0] as f32, x[1] as f32, x[2] as f32, 0.0];
-                v[k] = [vn[0] as f32, vn[1] as f32, vn[2] as f32, 0.0];
+                p[k] = vec4(x, 0.0);
+                v[k] = vec4(vn, 0.0);
             } else {
                 let s = dot(sub(xyz(p[k]), now.base()), t);
                 let x = at(now, s);
                 let vn = self.needle_velocity(prev, now, s);
                 let own = dot(xyz(v[k]), t) - dot(vn, t);
-                p[k] = [x[0] as f32, x[1] as f32, x[2] as f32, inv_mass];
-                v[k] = std::array::from_fn(|c| {
-                    if c < 3 {
-                        (vn[c] + own * t[c]) as f32
-                    } else {
-                        0.0
-                    }
-                });
+                p[k] = vec4(x, inv_mass);
+                v[k] = vec4(std::array::from_fn(|c| vn[c] + own * t[c]), 0.0);
             }
         }
         self.backend.write(NodeField::Position, n0, &p)?;
@@ -752,50 +1101,136 @@ impl Simulation {
         Ok(())
     }
 
+    /// The shaft length each needle node represents (0 for pinned nodes), m: half the way
+    /// to its neighbours along the shaft, from the entry node to the tip (or to the Exit
+    /// node when the tip is past the far surface).
+    fn shaft_lengths(&self, s: &[f64], length: f64) -> Vec<f64> {
+        let mut order: Vec<usize> = (0..s.len())
+            .filter(|&k| !self.pinned(&self.nodes[k]))
+            .collect();
+        order.sort_by(|&a, &b| s[a].total_cmp(&s[b]));
+        let mut l = vec![0.0; s.len()];
+        let (Some(&first), Some(&last)) = (order.first(), order.last()) else {
+            return l;
+        };
+        let lo = s[first];
+        let hi = match self.phase {
+            Phase::Exited => s[last],
+            _ => length.max(s[last]),
+        };
+        for (i, &k) in order.iter().enumerate() {
+            let a = if i == 0 {
+                lo
+            } else {
+                0.5 * (s[order[i - 1]] + s[k])
+            };
+            let b = if i + 1 == order.len() {
+                hi
+            } else {
+                0.5 * (s[k] + s[order[i + 1]])
+            };
+            l[k] = (b - a).max(0.0);
+        }
+        l
+    }
+
     /// Friction on the needle nodes and the needle force (after the force evaluation).
     fn apply_friction(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimError> {
         let m = self.nodes.len();
         let mut total = [0.0f64; 3];
+        let t = now.direction();
+        self.pinned_axial = 0.0;
         if m > 0 {
             let n0 = self.editor.n_mesh();
             let mut f = vec![[0.0f32; 4]; m];
             self.backend.read(NodeField::Force, n0..n0 + m, &mut f)?;
-            let t = now.direction();
             // The positions `constrain` wrote: the force evaluation does not move nodes.
             let p = std::mem::take(&mut self.positions);
+            let s: Vec<f64> = p.iter().map(|x| dot(sub(xyz(*x), now.base()), t)).collect();
+            let lengths = self.shaft_lengths(&s, now.length());
+            let tip_depth = self.depth_of(now.tip(), t);
+            // The tip cuts while it is at the deepest point it reached (the crack front).
+            let cutting = tip_depth >= self.cut_depth - 1e-9;
+            self.cut_depth = self.cut_depth.max(tip_depth);
+            let mut released = Vec::new();
+            // The node at the crack front: the Tip node, or the deepest node until the Tip
+            // node is added (none once the tip has left the body).
+            let front = match self.phase {
+                Phase::Inside => (0..m).max_by(|&a, &b| s[a].total_cmp(&s[b])).unwrap_or(0),
+                _ => usize::MAX,
+            };
             for k in 0..m {
                 let fe = xyz(f[k]);
                 let node = self.nodes[k];
-                let s_now = dot(sub(xyz(p[k]), now.base()), t);
-                let vn = self.needle_velocity(prev, now, s_now);
+                let vn = self.needle_velocity(prev, now, s[k]);
                 let vk = xyz(self.velocities[k]);
-                let pinned = node.role == NodeRole::Tip
-                    || (node.role == NodeRole::Surface && self.state == PunctureState::Touching);
-                if pinned {
+                if self.pinned(&node) {
                     total = std::array::from_fn(|c| total[c] + fe[c]);
+                    self.pinned_axial = -dot(fe, t);
                     continue;
                 }
-                let state = next_state(node.friction, fe, vk, vn, t, &self.friction);
-                if state != node.friction {
-                    self.nodes[k].friction = state;
-                    self.nodes[k].s = s_now;
-                }
-                match node.friction {
-                    FrictionState::Stick => {
-                        total = std::array::from_fn(|c| total[c] + fe[c]);
+                let (axial, normal) = split(fe, t);
+                let phi = match self.contact.friction {
+                    FrictionModel::PerLength(pl) => {
+                        let load = self.contact.grip * lengths[k] + dot(normal, normal).sqrt();
+                        let mut lim = Limits::symmetric(
+                            pl.static_coefficient() * load,
+                            pl.coefficient * load,
+                            pl.viscous * lengths[k],
+                        );
+                        if k == front && cutting {
+                            lim.static_forward += self.contact.cutting;
+                            lim.kinetic_forward += self.contact.cutting;
+                        }
+                        let step = AxialStep {
+                            elastic: axial,
+                            velocity: dot(vk, t),
+                            needle_velocity: dot(vn, t),
+                            mass: 1.0 / self.editor.inverse_mass() as f64,
+                            dt: self.dt,
+                            damping_factor: self.params.damping_factor as f64,
+                            gravity: dot(self.params.gravity.map(|g| g as f64), t),
+                        };
+                        let (state, phi) = per_length_step(node.friction, &step, &lim);
+                        if state != node.friction {
+                            self.nodes[k].friction = state;
+                            self.nodes[k].s = s[k];
+                            if state == FrictionState::Slip {
+                                released.push(k);
+                            }
+                        }
+                        phi
                     }
-                    FrictionState::Slip => {
-                        let (axial, normal) = split(fe, t);
-                        let fdf = dynamic_friction(fe, vk, vn, t, &self.friction);
-                        let applied: [f64; 3] = std::array::from_fn(|c| axial * t[c] + fdf[c]);
-                        f[k] = [applied[0] as f32, applied[1] as f32, applied[2] as f32, 0.0];
-                        total = std::array::from_fn(|c| total[c] + normal[c] - fdf[c]);
+                    FrictionModel::Paper(pp) => {
+                        if self.kinematic(&node) && node.role == NodeRole::Tip {
+                            total = std::array::from_fn(|c| total[c] + fe[c]);
+                            continue;
+                        }
+                        let state = paper_next_state(node.friction, fe, vk, vn, t, &pp);
+                        if state != node.friction {
+                            self.nodes[k].friction = state;
+                            self.nodes[k].s = s[k];
+                        }
+                        match node.friction {
+                            FrictionState::Stick => -axial,
+                            FrictionState::Slip => dot(paper_dynamic_friction(fe, vk, vn, t, &pp), t),
+                        }
                     }
-                }
+                };
+                // The shaft takes the normal part; the node keeps its axial force plus
+                // the needle's axial force on it.
+                f[k] = vec4(t.map(|x| (axial + phi) * x), 0.0);
+                total = std::array::from_fn(|c| total[c] + normal[c] - phi * t[c]);
             }
             self.backend.write(NodeField::Force, n0, &f)?;
+            // A node that started to slip this step moves under its force from now on.
+            let inv_mass = self.editor.inverse_mass();
+            for k in released {
+                let mut q = p[k];
+                q[3] = inv_mass;
+                self.backend.write(NodeField::Position, n0 + k, &[q])?;
+            }
         }
-        let t = now.direction();
         let along = dot(total, t);
         let lateral: [f64; 3] = std::array::from_fn(|c| total[c] - along * t[c]);
         self.force = NeedleForce {
