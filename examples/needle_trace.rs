@@ -25,6 +25,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 s.active_nodes,
                 s.needle_nodes
             );
+            if args.get(3).is_some() {
+                let n: Vec<String> = sim
+                    .needle_nodes()
+                    .iter()
+                    .map(|n| format!("{:?}/{:?}/{:.4}", n.role, n.friction, n.s))
+                    .collect();
+                println!("    {}", n.join(" "));
+            }
         }
     }
     Ok(())

@@ -275,7 +275,7 @@ fn paper_text(model: ModelId, h: f64) -> String {
          [material]\n{}\n[physics]\ndt = 1e-3\ndamping = {:e}\ncheck_every = 50\n\
          [[fixed]]\naxis = \"x\"\nabove = 0.199\n\
          [needle]\nbase = [-0.22, 0.1013, 0.0987]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.2\n\
-         friction = {{ static_threshold = 0.01, dynamic = 0.2, viscous = 0.1 }}\n\
+         friction = {{ coefficient = 0.3 }}\ncutting = 0.2\n\
          [[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.05\nduration = 3.0\n\
          [[needle.keyframe]]\naction = \"rotate\"\naxis = [0.0, 0.0, 1.0]\npoint = [0.0, 0.1013, 0.0987]\nrate = 25.0\nduration = 1.0\n\
          [[needle.keyframe]]\naction = \"pause\"\nduration = 0.5\n",
