@@ -30,7 +30,11 @@ fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64, f64) {
     let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
     let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
     let b = sxy / sxx;
-    let ssr: f64 = x.iter().zip(y).map(|(a, c)| (c - my - b * (a - mx)).powi(2)).sum();
+    let ssr: f64 = x
+        .iter()
+        .zip(y)
+        .map(|(a, c)| (c - my - b * (a - mx)).powi(2))
+        .sum();
     let sst: f64 = y.iter().map(|c| (c - my).powi(2)).sum();
     (b, 1.0 - ssr / sst, (ssr / n).sqrt(), my)
 }
@@ -53,7 +57,9 @@ fn insertion(sim: &Simulation, t_end: f64) -> (Vec<f64>, Vec<f64>) {
         .collect();
     let rows = &rows[rows.len() / 10..];
     (
-        rows.iter().map(|s| sim.depth_of(s.tip, s.direction)).collect(),
+        rows.iter()
+            .map(|s| sim.depth_of(s.tip, s.direction))
+            .collect(),
         rows.iter().map(|s| s.force.axial).collect(),
     )
 }
@@ -67,7 +73,10 @@ fn insert_hold_extract_force_is_linear_smooth_and_negative_on_extraction() {
     let (depth, force) = insertion(&sim, 2.0);
     let (slope, r2, sd, mean) = line_fit(&depth, &force);
     eprintln!("slope {slope:.3} N/m, R^2 {r2:.3}, residual {sd:.4} N of mean {mean:.4} N");
-    assert!(slope > 0.0 && r2 >= 0.9 && sd <= 0.1 * mean, "{slope} {r2} {sd} {mean}");
+    assert!(
+        slope > 0.0 && r2 >= 0.9 && sd <= 0.1 * mean,
+        "{slope} {r2} {sd} {mean}"
+    );
     let held: Vec<f64> = sim
         .history()
         .iter()
@@ -75,7 +84,10 @@ fn insert_hold_extract_force_is_linear_smooth_and_negative_on_extraction() {
         .map(|s| s.force.axial)
         .collect();
     let chatter = relative_chatter(&held);
-    eprintln!("held: median step change {:.3}% of the force", 100.0 * chatter);
+    eprintln!(
+        "held: median step change {:.3}% of the force",
+        100.0 * chatter
+    );
     assert!(chatter <= 0.01, "{chatter}");
     // Extraction: negative while the shaft is in the tissue, its size shrinking with the
     // inserted length (the mean over the first half above that over the second).
@@ -85,10 +97,16 @@ fn insert_hold_extract_force_is_linear_smooth_and_negative_on_extraction() {
         .filter(|s| s.time > 2.6 && s.state == PunctureState::Inside)
         .map(|s| s.force.axial)
         .collect();
-    assert!(out.iter().all(|f| *f < 0.0), "a positive force while extracting");
+    assert!(
+        out.iter().all(|f| *f < 0.0),
+        "a positive force while extracting"
+    );
     let half = out.len() / 2;
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    assert!(mean(&out[..half]) < 2.0 * mean(&out[half..]), "not shrinking");
+    assert!(
+        mean(&out[..half]) < 2.0 * mean(&out[half..]),
+        "not shrinking"
+    );
     assert!(out.last().unwrap().abs() < 0.1 * out[0].abs());
     assert_eq!(sim.state(), PunctureState::Outside);
 }
@@ -109,12 +127,19 @@ fn rotation_and_pause_do_not_chatter() {
             .collect()
     };
     for (name, f) in [
-        ("axial", &(|s: &NeedleSample| s.force.axial) as &dyn Fn(&NeedleSample) -> f64),
+        (
+            "axial",
+            &(|s: &NeedleSample| s.force.axial) as &dyn Fn(&NeedleSample) -> f64,
+        ),
         ("lateral", &|s: &NeedleSample| s.force.lateral),
     ] {
         let rot = relative_chatter(&pick(3.0, 4.0, f));
         let pause = relative_chatter(&pick(4.0, 4.5, f));
-        eprintln!("{name}: rotation {:.3}%, pause {:.3}%", 100.0 * rot, 100.0 * pause);
+        eprintln!(
+            "{name}: rotation {:.3}%, pause {:.3}%",
+            100.0 * rot,
+            100.0 * pause
+        );
         assert!(rot <= 0.02 && pause <= 0.01, "{name}: {rot} {pause}");
     }
     let paper = text.replace(

@@ -7,6 +7,7 @@
 pub mod cases;
 pub mod extreme;
 pub mod fem;
+pub mod needle;
 pub mod stable_dt;
 
 use crate::plot::{plot, Axes, Labels, Series};
@@ -63,6 +64,8 @@ pub struct ReportSummary {
     pub stable: Vec<StableDt>,
     /// Extreme cases.
     pub extreme: Vec<ExtremeResult>,
+    /// The needle section.
+    pub needle: needle::NeedleReport,
     /// Wall time of the whole report.
     pub elapsed: Duration,
 }
@@ -239,11 +242,13 @@ pub fn run_report(
             extreme.push(r);
         }
     }
+    let needle = needle::run_needle(options.size == ReportSize::Full, &mut progress)?;
     let summary = ReportSummary {
         accuracy,
         timing,
         stable,
         extreme,
+        needle,
         elapsed: start.elapsed(),
     };
     write_all(options, &summary)?;
@@ -343,6 +348,7 @@ fn write_all(options: &ReportOptions, s: &ReportSummary) -> Result<(), ReportErr
     }
     write(&out.join("extreme.csv"), &csv)?;
     plots(out, s)?;
+    needle::write_needle(out, &s.needle).map_err(io(out))?;
     write(&out.join("report.md"), &markdown(options, s))
 }
 
@@ -685,5 +691,6 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
         }
         writeln!(md).unwrap();
     }
+    needle::markdown(&mut md, &s.needle);
     md
 }

@@ -125,10 +125,7 @@ impl PerLengthFriction {
 
     /// Checks that every value is finite and non-negative and `mu_s >= mu_k`.
     pub fn validate(&self) -> Result<(), (String, String)> {
-        let mut values = vec![
-            ("coefficient", self.coefficient),
-            ("viscous", self.viscous),
-        ];
+        let mut values = vec![("coefficient", self.coefficient), ("viscous", self.viscous)];
         if let Some(g) = self.grip {
             values.push(("grip", g));
         }
@@ -246,16 +243,13 @@ impl FrictionModel {
         };
         let m = match model.as_str() {
             "per_length" => {
-                let p: PerLengthFriction = toml::Value::Table(table)
-                    .try_into()
-                    .map_err(parse_err)?;
+                let p: PerLengthFriction =
+                    toml::Value::Table(table).try_into().map_err(parse_err)?;
                 p.validate()?;
                 FrictionModel::PerLength(p)
             }
             "paper" => {
-                let p: PaperFriction = toml::Value::Table(table)
-                    .try_into()
-                    .map_err(parse_err)?;
+                let p: PaperFriction = toml::Value::Table(table).try_into().map_err(parse_err)?;
                 p.validate()?;
                 FrictionModel::Paper(p)
             }
@@ -424,14 +418,32 @@ mod tests {
         let v = [0.01, 0.0, 0.0];
         let st = |s, f, vn| paper_next_state(s, f, vn, v, t, &P);
         // Large normal force, small axial force: still sticks.
-        assert_eq!(st(FrictionState::Stick, [0.4, 5.0, 0.0], v), FrictionState::Stick);
-        assert_eq!(st(FrictionState::Stick, [-0.6, 0.0, 0.0], v), FrictionState::Slip);
-        assert_eq!(st(FrictionState::Slip, [0.0; 3], [0.0; 3]), FrictionState::Slip);
+        assert_eq!(
+            st(FrictionState::Stick, [0.4, 5.0, 0.0], v),
+            FrictionState::Stick
+        );
+        assert_eq!(
+            st(FrictionState::Stick, [-0.6, 0.0, 0.0], v),
+            FrictionState::Slip
+        );
+        assert_eq!(
+            st(FrictionState::Slip, [0.0; 3], [0.0; 3]),
+            FrictionState::Slip
+        );
         let slow = [0.0095, 0.0, 0.0];
-        assert_eq!(st(FrictionState::Slip, [0.0; 3], slow), FrictionState::Stick);
+        assert_eq!(
+            st(FrictionState::Slip, [0.0; 3], slow),
+            FrictionState::Stick
+        );
         // Slow, but pulled harder than the static threshold: keeps slipping.
-        assert_eq!(st(FrictionState::Slip, [0.6, 0.0, 0.0], slow), FrictionState::Slip);
-        assert_eq!(st(FrictionState::Slip, [0.3, 0.0, 0.0], slow), FrictionState::Stick);
+        assert_eq!(
+            st(FrictionState::Slip, [0.6, 0.0, 0.0], slow),
+            FrictionState::Slip
+        );
+        assert_eq!(
+            st(FrictionState::Slip, [0.3, 0.0, 0.0], slow),
+            FrictionState::Stick
+        );
     }
 
     #[test]
@@ -480,11 +492,20 @@ mod tests {
     fn sticking_node_is_held_within_the_static_limit_and_slips_beyond() {
         let lim = Limits::symmetric(0.2, 0.15, 0.0);
         let s = step(-0.1, 0.02, 0.02);
-        assert_eq!(per_length_step(FrictionState::Stick, &s, &lim), (FrictionState::Stick, 0.1));
+        assert_eq!(
+            per_length_step(FrictionState::Stick, &s, &lim),
+            (FrictionState::Stick, 0.1)
+        );
         let s = step(-0.3, 0.02, 0.02);
-        assert_eq!(per_length_step(FrictionState::Stick, &s, &lim), (FrictionState::Slip, 0.15));
+        assert_eq!(
+            per_length_step(FrictionState::Stick, &s, &lim),
+            (FrictionState::Slip, 0.15)
+        );
         let s = step(0.3, 0.02, 0.02);
-        assert_eq!(per_length_step(FrictionState::Stick, &s, &lim), (FrictionState::Slip, -0.15));
+        assert_eq!(
+            per_length_step(FrictionState::Stick, &s, &lim),
+            (FrictionState::Slip, -0.15)
+        );
     }
 
     /// A slipping node never overshoots the needle's speed: the relative velocity keeps
@@ -518,9 +539,16 @@ mod tests {
                     assert!(phi >= -lim.kinetic_backward - 1e-12);
                 }
                 FrictionState::Slip => {
-                    assert!(w * w_free > 0.0, "relative velocity flipped: {w_free} -> {w}");
+                    assert!(
+                        w * w_free > 0.0,
+                        "relative velocity flipped: {w_free} -> {w}"
+                    );
                     assert!(phi * w <= 0.0, "friction {phi} feeds relative motion {w}");
-                    let k = if phi > 0.0 { lim.kinetic_forward } else { lim.kinetic_backward };
+                    let k = if phi > 0.0 {
+                        lim.kinetic_forward
+                    } else {
+                        lim.kinetic_backward
+                    };
                     assert!((phi.abs() - (k + lim.viscous * w.abs())).abs() < 1e-9);
                 }
             }
@@ -531,17 +559,31 @@ mod tests {
     fn per_length_config_and_errors_name_the_key() {
         let v: toml::Value = toml::from_str("coefficient = 0.4\ngrip = 50.0").unwrap();
         let m = FrictionModel::from_value(&v).unwrap();
-        let FrictionModel::PerLength(p) = m else { panic!("{m:?}") };
-        assert_eq!((p.coefficient, p.grip, p.static_coefficient()), (0.4, Some(50.0), 0.4));
+        let FrictionModel::PerLength(p) = m else {
+            panic!("{m:?}")
+        };
+        assert_eq!(
+            (p.coefficient, p.grip, p.static_coefficient()),
+            (0.4, Some(50.0), 0.4)
+        );
         let v: toml::Value =
             toml::from_str("model = \"paper\"\nstatic_threshold = 0.01\ndynamic = 0.2").unwrap();
-        assert!(matches!(FrictionModel::from_value(&v), Ok(FrictionModel::Paper(_))));
+        assert!(matches!(
+            FrictionModel::from_value(&v),
+            Ok(FrictionModel::Paper(_))
+        ));
         for (text, key) in [
             ("grip = -1.0", "needle.friction.grip"),
             ("coefficient = nan", "needle.friction.coefficient"),
-            ("coefficient = 0.4\nstatic_coefficient = 0.2", "needle.friction.static_coefficient"),
+            (
+                "coefficient = 0.4\nstatic_coefficient = 0.2",
+                "needle.friction.static_coefficient",
+            ),
             ("model = \"coulomb\"", "needle.friction.model"),
-            ("static_threshold = 0.01", "needle.friction (model = \"per_length\")"),
+            (
+                "static_threshold = 0.01",
+                "needle.friction (model = \"per_length\")",
+            ),
         ] {
             let v: toml::Value = toml::from_str(text).unwrap();
             let (k, why) = FrictionModel::from_value(&v).unwrap_err();

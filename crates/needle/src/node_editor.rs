@@ -239,11 +239,7 @@ impl NodeEditor {
     /// The offset of node `i` from where a rigid motion of its neighbourhood would put it,
     /// `(x_i - C) - R (x0_i - C0)` over its live neighbours, m: the part of its position
     /// that strains the tissue around it.
-    pub fn elastic_offset(
-        &self,
-        backend: &mut dyn Backend,
-        i: u32,
-    ) -> Result<[f64; 3], EditError> {
+    pub fn elastic_offset(&self, backend: &mut dyn Backend, i: u32) -> Result<[f64; 3], EditError> {
         let mut nodes: Vec<u32> = self.nb.live(i as usize).map(|(_, j, _)| j as u32).collect();
         nodes.push(i);
         let mut pos = vec![[0.0f32; 4]; nodes.len()];
@@ -258,7 +254,11 @@ impl NodeEditor {
         let r0 = self.rest[i as usize];
         let d0: [f64; 3] = std::array::from_fn(|a| r0[a] as f64 - c0[a]);
         Ok(std::array::from_fn(|row| {
-            xi[row] as f64 - c[row] - (0..3).map(|col| rot[row][col] as f64 * d0[col]).sum::<f64>()
+            xi[row] as f64
+                - c[row]
+                - (0..3)
+                    .map(|col| rot[row][col] as f64 * d0[col])
+                    .sum::<f64>()
         }))
     }
 

@@ -50,8 +50,8 @@
 
 use crate::config::NeedleConfig;
 use crate::friction::{
-    grip_from_modulus, paper_dynamic_friction, paper_next_state, per_length_step, split,
-    AxialStep, FrictionModel, FrictionState, Limits, PerLengthFriction,
+    grip_from_modulus, paper_dynamic_friction, paper_next_state, per_length_step, split, AxialStep,
+    FrictionModel, FrictionState, Limits, PerLengthFriction,
 };
 use crate::needle::Needle;
 use crate::node_editor::{EditError, NodeEditor};
@@ -754,8 +754,15 @@ impl Simulation {
                 };
                 let corners = self.triangles[id];
                 let s = dot(sub(point, now.base()), t);
-                self.add(NodeRole::Surface, point, s, &corners, v_tip, FrictionState::Stick)
-                    .map_err(|e| self.edit(e))?;
+                self.add(
+                    NodeRole::Surface,
+                    point,
+                    s,
+                    &corners,
+                    v_tip,
+                    FrictionState::Stick,
+                )
+                .map_err(|e| self.edit(e))?;
                 self.split_at_last(id);
                 self.entry.get_or_insert(point);
                 self.phase = Phase::Touching;
@@ -809,7 +816,10 @@ impl Simulation {
     /// pulled back behind it.
     fn exited(&mut self, now: &Needle, v_tip: [f64; 3]) -> Result<(), SimulationError> {
         let pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
-        let d = dot(sub(now.tip(), *pos.last().expect("exit node")), now.direction());
+        let d = dot(
+            sub(now.tip(), *pos.last().expect("exit node")),
+            now.direction(),
+        );
         self.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
         if d < 0.0 {
             self.remove().map_err(|e| self.edit(e))?;
@@ -934,8 +944,15 @@ impl Simulation {
                 }
                 let corners = self.triangles[id];
                 let s = dot(sub(point, now.base()), t);
-                self.add(NodeRole::Exit, point, s, &corners, v_tip, FrictionState::Stick)
-                    .map_err(|e| self.edit(e))?;
+                self.add(
+                    NodeRole::Exit,
+                    point,
+                    s,
+                    &corners,
+                    v_tip,
+                    FrictionState::Stick,
+                )
+                .map_err(|e| self.edit(e))?;
                 self.split_at_last(id);
                 pos.push(point);
                 self.phase = Phase::ExitTouching;
@@ -1213,7 +1230,9 @@ impl Simulation {
                         }
                         match node.friction {
                             FrictionState::Stick => -axial,
-                            FrictionState::Slip => dot(paper_dynamic_friction(fe, vk, vn, t, &pp), t),
+                            FrictionState::Slip => {
+                                dot(paper_dynamic_friction(fe, vk, vn, t, &pp), t)
+                            }
                         }
                     }
                 };

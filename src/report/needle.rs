@@ -1,0 +1,330 @@
+//! The report's needle section: the liver scene's force against depth over the published
+//! band, the smoothness of the needle force for every model (median step-to-step change
+//! and the share of its power above 50 Hz during the paper's rotation and the pause after
+//! it), and the force-depth slope at two resolutions.
+//!
+//! Published band (cited in `scenes/liver_insertion.toml`): a puncture peak of 1 to 3 N
+//! and a force-depth slope after puncture of 35 to 59 N/m (J Endourol 2016,
+//! doi 10.1089/end.2016.0342).
+
+use super::cases::ReportError;
+use crate::plot::{line_plot, Labels, Series};
+use needlesim_core::{CpuBackend, Scene, Threading};
+use needlesim_needle::{NeedleSample, PunctureState, Simulation};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Published puncture peak band, N.
+pub const PEAK_BAND: (f64, f64) = (1.0, 3.0);
+/// Published force-depth slope band after puncture, N/m.
+pub const SLOPE_BAND: (f64, f64) = (35.0, 59.0);
+
+/// What the needle section measured.
+#[derive(Debug, Clone, Default)]
+pub struct NeedleReport {
+    /// Liver scene: nodes, puncture peak (N), slope after puncture (N/m), R^2, residual
+    /// standard deviation over the mean force.
+    pub liver: Option<(usize, f64, f64, f64, f64)>,
+    /// Per model: (label, rotation step change %, pause step change %, rotation power
+    /// above 50 Hz %, axial and lateral).
+    pub smoothness: Vec<(String, [f64; 2], [f64; 2], [f64; 2])>,
+    /// Slope per resolution: (nodes, needle spacing m, slope N/m).
+    pub slopes: Vec<(usize, f64, f64)>,
+    /// The liver run's (depth mm, axial N) for the plot.
+    curve: Vec<(f64, f64)>,
+}
+
+fn sim_of(text: &str, base: &Path) -> Result<Simulation, ReportError> {
+    let scene = Scene::from_toml_str(text, base)
+        .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
+    let prep = Simulation::prepare(&scene)?;
+    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
+        .map_err(crate::runner::RunError::from)?;
+    let mut sim = prep.start(Box::new(b))?;
+    sim.step_n(scene.run.steps)?;
+    Ok(sim)
+}
+
+/// Slope (per unit x), R^2 and residual standard deviation of a least-squares line.
+pub fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64) {
+    let n = x.len() as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    let b = sxy / sxx;
+    let ssr: f64 = x
+        .iter()
+        .zip(y)
+        .map(|(a, c)| (c - my - b * (a - mx)).powi(2))
+        .sum();
+    let sst: f64 = y.iter().map(|c| (c - my).powi(2)).sum();
+    (b, 1.0 - ssr / sst, (ssr / n).sqrt())
+}
+
+/// Median absolute step-to-step change over the mean magnitude.
+pub fn step_change(v: &[f64]) -> f64 {
+    let mut d: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    d.sort_by(f64::total_cmp);
+    let mean = v.iter().map(|x| x.abs()).sum::<f64>() / v.len() as f64;
+    d[d.len() / 2] / mean.max(1e-300)
+}
+
+/// Share of the power of `v` (sampled every `dt` s, its linear trend removed) above `hz`.
+pub fn power_above(v: &[f64], dt: f64, hz: f64) -> f64 {
+    let n = v.len();
+    let x: Vec<f64> = (0..n).map(|i| i as f64).collect();
+    let (b, _, _) = line_fit(&x, v);
+    let my = v.iter().sum::<f64>() / n as f64;
+    let r: Vec<f64> = (0..n)
+        .map(|i| v[i] - my - b * (i as f64 - 0.5 * (n - 1) as f64))
+        .collect();
+    let (mut high, mut all) = (0.0, 0.0);
+    for k in 1..=n / 2 {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (i, y) in r.iter().enumerate() {
+            let a = 2.0 * std::f64::consts::PI * (k * i) as f64 / n as f64;
+            re += y * a.cos();
+            im -= y * a.sin();
+        }
+        let p = re * re + im * im;
+        all += p;
+        if k as f64 / (n as f64 * dt) > hz {
+            high += p;
+        }
+    }
+    if all > 0.0 {
+        high / all
+    } else {
+        0.0
+    }
+}
+
+fn pick(h: &[NeedleSample], a: f64, b: f64, f: fn(&NeedleSample) -> f64) -> Vec<f64> {
+    h.iter()
+        .filter(|s| s.time > a && s.time <= b)
+        .map(f)
+        .collect()
+}
+
+/// Runs the needle section. `full`: the liver scene at its own 5 mm spacing and the slope
+/// study at 648 and 4,913 nodes; otherwise the liver scene at 10 mm and the slope study
+/// with the needle spacing halved only.
+pub fn run_needle(full: bool, progress: &mut dyn FnMut(&str)) -> Result<NeedleReport, ReportError> {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let read = |name: &str| {
+        std::fs::read_to_string(scenes.join(name)).map_err(|source| ReportError::Io {
+            path: scenes.join(name).display().to_string(),
+            source,
+        })
+    };
+    let mut rep = NeedleReport::default();
+    // The liver scene.
+    let mut liver = read("liver_insertion.toml")?;
+    if !full {
+        liver = liver.replace("spacing = 0.005 }", "spacing = 0.01 }");
+    }
+    let sim = sim_of(&liver, &scenes)?;
+    let h = sim.history();
+    let peak = h
+        .iter()
+        .filter(|s| s.state == PunctureState::Touching)
+        .map(|s| s.force.axial)
+        .fold(f64::NAN, f64::max);
+    let inside: Vec<&NeedleSample> = h
+        .iter()
+        .filter(|s| s.state == PunctureState::Inside && s.time <= 7.0)
+        .collect();
+    let inside = &inside[inside.len() / 10..];
+    let depth: Vec<f64> = inside
+        .iter()
+        .map(|s| sim.depth_of(s.tip, s.direction))
+        .collect();
+    let force: Vec<f64> = inside.iter().map(|s| s.force.axial).collect();
+    let (slope, r2, sd) = line_fit(&depth, &force);
+    let mean = force.iter().sum::<f64>() / force.len() as f64;
+    let nodes = sim.editor().n_mesh();
+    progress(&format!(
+        "needle       liver {nodes} nodes: peak {peak:.3} N, slope {slope:.1} N/m (R^2 {r2:.3}, residual {:.1}%)",
+        100.0 * sd / mean
+    ));
+    rep.liver = Some((nodes, peak, slope, r2, sd / mean));
+    rep.curve = h
+        .iter()
+        .map(|s| (1e3 * sim.depth_of(s.tip, s.direction), s.force.axial))
+        .collect();
+    // Smoothness per model on the paper's experiment.
+    for m in ["msm", "lshm", "deb", "pba"] {
+        let sim = sim_of(&read(&format!("paper_insertion_{m}.toml"))?, &scenes)?;
+        let h = sim.history();
+        let axial: fn(&NeedleSample) -> f64 = |s| s.force.axial;
+        let lateral: fn(&NeedleSample) -> f64 = |s| s.force.lateral;
+        let rot = [axial, lateral].map(|f| 100.0 * step_change(&pick(h, 3.0, 4.0, f)));
+        let pause = [axial, lateral].map(|f| 100.0 * step_change(&pick(h, 4.0, 4.5, f)));
+        let hf =
+            [axial, lateral].map(|f| 100.0 * power_above(&pick(h, 3.0, 4.0, f), sim.dt(), 50.0));
+        progress(&format!(
+            "needle       {m:<5} step change rotation {:.3}/{:.3}%, pause {:.3}/{:.3}%, power above 50 Hz {:.4}/{:.4}% (axial/lateral)",
+            rot[0], rot[1], pause[0], pause[1], hf[0], hf[1]
+        ));
+        rep.smoothness.push((m.to_string(), rot, pause, hf));
+    }
+    // Slope against resolution, the grip given so that the tissue's modulus (and with it
+    // the derived grip) does not change with the lattice.
+    let base = read("needle_insert_extract.toml")?.replace(
+        "friction = { coefficient = 0.3 }",
+        "friction = { coefficient = 0.3, grip = 20.0 }",
+    );
+    let mut variants = vec![
+        (base.clone(), 0.0),
+        (
+            base.replace("length = 0.1\n", "length = 0.1\nspacing = 0.0058\n"),
+            0.0058,
+        ),
+    ];
+    if full {
+        variants.push((base.replace("nodes = 639", "nodes = 4913"), 0.0));
+    }
+    for (text, spacing) in variants {
+        let text = text.replace("steps = 5000", "steps = 2000");
+        let sim = sim_of(&text, &scenes)?;
+        let rows: Vec<&NeedleSample> = sim
+            .history()
+            .iter()
+            .filter(|s| s.state == PunctureState::Inside)
+            .collect();
+        let rows = &rows[rows.len() / 10..];
+        let d: Vec<f64> = rows
+            .iter()
+            .map(|s| sim.depth_of(s.tip, s.direction))
+            .collect();
+        let f: Vec<f64> = rows.iter().map(|s| s.force.axial).collect();
+        let (slope, _, _) = line_fit(&d, &f);
+        let spacing = if spacing > 0.0 {
+            spacing
+        } else {
+            sim.spacing()
+        };
+        progress(&format!(
+            "needle       slope {slope:.3} N/m at {} nodes, needle spacing {spacing:.4} m",
+            sim.editor().n_mesh()
+        ));
+        rep.slopes.push((sim.editor().n_mesh(), spacing, slope));
+    }
+    Ok(rep)
+}
+
+/// Writes `needle.csv` and `needle_force_liver.png` into `out`.
+pub fn write_needle(out: &Path, r: &NeedleReport) -> std::io::Result<()> {
+    let mut csv = String::from("quantity,model,nodes,value\n");
+    if let Some((n, peak, slope, r2, res)) = r.liver {
+        writeln!(csv, "liver_peak_n,deb,{n},{peak:e}").unwrap();
+        writeln!(csv, "liver_slope_n_per_m,deb,{n},{slope:e}").unwrap();
+        writeln!(csv, "liver_r2,deb,{n},{r2:e}").unwrap();
+        writeln!(csv, "liver_residual_fraction,deb,{n},{res:e}").unwrap();
+    }
+    for (m, rot, pause, hf) in &r.smoothness {
+        for (i, axis) in ["axial", "lateral"].iter().enumerate() {
+            writeln!(csv, "rotation_step_change_percent_{axis},{m},,{:e}", rot[i]).unwrap();
+            writeln!(csv, "pause_step_change_percent_{axis},{m},,{:e}", pause[i]).unwrap();
+            writeln!(
+                csv,
+                "rotation_power_above_50hz_percent_{axis},{m},,{:e}",
+                hf[i]
+            )
+            .unwrap();
+        }
+    }
+    for (n, h, s) in &r.slopes {
+        writeln!(
+            csv,
+            "slope_n_per_m_needle_spacing_{h:.4},lshm-cluster,{n},{s:e}"
+        )
+        .unwrap();
+    }
+    std::fs::write(out.join("needle.csv"), csv)?;
+    // Force against depth with the band: the peak band at the puncture depth, the slope
+    // band through the force where the slope fit starts.
+    let punct = r
+        .curve
+        .iter()
+        .zip(r.curve.iter().skip(1))
+        .find(|(a, b)| b.1 < a.1 - 0.2)
+        .map_or(0.0, |(a, _)| a.0);
+    let end = r.curve.iter().map(|p| p.0).fold(0.0, f64::max);
+    let start = r
+        .curve
+        .iter()
+        .find(|p| p.0 > punct + 0.1 * (end - punct))
+        .map_or(0.0, |p| p.1);
+    let x0 = punct + 0.1 * (end - punct);
+    let band =
+        |s: f64| -> Vec<(f64, f64)> { vec![(x0, start), (end, start + s * (end - x0) * 1e-3)] };
+    line_plot(
+        &out.join("needle_force_liver.png"),
+        &Labels {
+            title: "liver scene: needle force against depth, published band",
+            x: "tip depth past first contact (mm)",
+            y: "axial force (N)",
+        },
+        &[
+            Series {
+                label: "needlesim",
+                colour: [200, 40, 40],
+                points: r.curve.clone(),
+            },
+            Series {
+                label: "slope 35 N/m",
+                colour: [120, 120, 120],
+                points: band(SLOPE_BAND.0),
+            },
+            Series {
+                label: "slope 59 N/m",
+                colour: [60, 60, 60],
+                points: band(SLOPE_BAND.1),
+            },
+            Series {
+                label: "peak 1-3 N",
+                colour: [40, 90, 200],
+                points: vec![(punct, PEAK_BAND.0), (punct, PEAK_BAND.1)],
+            },
+        ],
+    )
+}
+
+/// The report's markdown section.
+pub fn markdown(md: &mut String, r: &NeedleReport) {
+    writeln!(md, "## Needle force\n").unwrap();
+    if let Some((n, peak, slope, r2, res)) = r.liver {
+        let inside = |v: f64, b: (f64, f64)| {
+            if v >= b.0 && v <= b.1 {
+                "inside"
+            } else {
+                "OUTSIDE"
+            }
+        };
+        writeln!(md, "Liver scene (`scenes/liver_insertion.toml`, {n} nodes, 18 G needle at 5 mm/s): puncture peak {peak:.2} N ({} the published 1-3 N), slope after puncture {slope:.1} N/m ({} the published 35-59 N/m), straight line R^2 {r2:.3}, residual {:.1}% of the mean force.\n", inside(peak, PEAK_BAND), inside(slope, SLOPE_BAND), 100.0 * res).unwrap();
+        writeln!(md, "![liver](needle_force_liver.png)\n").unwrap();
+    }
+    writeln!(md, "Smoothness on the paper's experiment (25-degree rotation 3-4 s, pause 4-4.5 s): median step-to-step change as % of the mean force, and the share of the rotation's (detrended) force power above 50 Hz.\n").unwrap();
+    writeln!(md, "| model | rotation axial | rotation lateral | pause axial | pause lateral | >50 Hz axial | >50 Hz lateral |").unwrap();
+    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|").unwrap();
+    for (m, rot, pause, hf) in &r.smoothness {
+        writeln!(
+            md,
+            "| {m} | {:.3}% | {:.3}% | {:.3}% | {:.3}% | {:.4}% | {:.4}% |",
+            rot[0], rot[1], pause[0], pause[1], hf[0], hf[1]
+        )
+        .unwrap();
+    }
+    writeln!(md, "\nForce-depth slope by resolution (insert-extract scene, grip 20 N/m given, coefficient 0.3: friction 6 N/m plus the tissue ahead of the tip):\n").unwrap();
+    writeln!(
+        md,
+        "| tissue nodes | needle node spacing (m) | slope (N/m) |"
+    )
+    .unwrap();
+    writeln!(md, "|---:|---:|---:|").unwrap();
+    for (n, h, s) in &r.slopes {
+        writeln!(md, "| {n} | {h:.4} | {s:.3} |").unwrap();
+    }
+    writeln!(md).unwrap();
+}
