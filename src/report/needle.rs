@@ -19,6 +19,10 @@ pub const PEAK_BAND: (f64, f64) = (1.0, 3.0);
 /// Published force-depth slope band after puncture, N/m.
 pub const SLOPE_BAND: (f64, f64) = (35.0, 59.0);
 
+/// One model's smoothness: (label, rotation step change %, pause step change %, rotation
+/// power above 50 Hz %), each axial and lateral.
+pub type Smoothness = (String, [f64; 2], [f64; 2], [f64; 2]);
+
 /// What the needle section measured.
 #[derive(Debug, Clone, Default)]
 pub struct NeedleReport {
@@ -27,7 +31,7 @@ pub struct NeedleReport {
     pub liver: Option<(usize, f64, f64, f64, f64)>,
     /// Per model: (label, rotation step change %, pause step change %, rotation power
     /// above 50 Hz %, axial and lateral).
-    pub smoothness: Vec<(String, [f64; 2], [f64; 2], [f64; 2])>,
+    pub smoothness: Vec<Smoothness>,
     /// Slope per resolution: (nodes, needle spacing m, slope N/m).
     pub slopes: Vec<(usize, f64, f64)>,
     /// The liver run's (depth mm, axial N) for the plot.
