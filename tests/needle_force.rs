@@ -23,28 +23,15 @@ fn run(text: &str, steps: u64) -> Simulation {
     sim
 }
 
-/// Least-squares line through (x, y): slope, R^2, residual standard deviation, mean y.
+/// Slope, R^2, residual standard deviation and mean y of a least-squares line.
 fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64, f64) {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let b = sxy / sxx;
-    let ssr: f64 = x
-        .iter()
-        .zip(y)
-        .map(|(a, c)| (c - my - b * (a - mx)).powi(2))
-        .sum();
-    let sst: f64 = y.iter().map(|c| (c - my).powi(2)).sum();
-    (b, 1.0 - ssr / sst, (ssr / n).sqrt(), my)
+    let (b, r2, sd) = needlesim::report::needle::line_fit(x, y);
+    (b, r2, sd, y.iter().sum::<f64>() / y.len() as f64)
 }
 
 /// Median absolute step-to-step change over the mean magnitude.
 fn relative_chatter(v: &[f64]) -> f64 {
-    let mut d: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
-    d.sort_by(f64::total_cmp);
-    let mean = v.iter().map(|x| x.abs()).sum::<f64>() / v.len() as f64;
-    d[d.len() / 2] / mean
+    needlesim::report::needle::step_change(v)
 }
 
 /// Depth past the entry and axial force of the Inside steps up to `t_end`, without the

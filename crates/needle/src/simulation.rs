@@ -715,6 +715,24 @@ impl Simulation {
         self.grid.insert(sp.triangle as u32, corners);
     }
 
+    /// Adds the Surface or Exit node at `point` on surface triangle `id`, pinned to the
+    /// needle (sticking), and splits the triangle around it.
+    fn pin_at_surface(
+        &mut self,
+        role: NodeRole,
+        id: usize,
+        point: [f64; 3],
+        now: &Needle,
+        v_tip: [f64; 3],
+    ) -> Result<(), SimulationError> {
+        let corners = self.triangles[id];
+        let s = dot(sub(point, now.base()), now.direction());
+        self.add(role, point, s, &corners, v_tip, FrictionState::Stick)
+            .map_err(|e| self.edit(e))?;
+        self.split_at_last(id);
+        Ok(())
+    }
+
     /// Splits triangle `id` around the newest needle node.
     fn split_at_last(&mut self, id: usize) {
         let node = self.nodes.last().expect("just added").index;
@@ -752,18 +770,7 @@ impl Simulation {
                 let Some((id, point)) = hit else {
                     return Ok(());
                 };
-                let corners = self.triangles[id];
-                let s = dot(sub(point, now.base()), t);
-                self.add(
-                    NodeRole::Surface,
-                    point,
-                    s,
-                    &corners,
-                    v_tip,
-                    FrictionState::Stick,
-                )
-                .map_err(|e| self.edit(e))?;
-                self.split_at_last(id);
+                self.pin_at_surface(NodeRole::Surface, id, point, now, v_tip)?;
                 self.entry.get_or_insert(point);
                 self.phase = Phase::Touching;
             }
@@ -942,18 +949,7 @@ impl Simulation {
                     self.remove().map_err(|e| self.edit(e))?;
                     pos.pop();
                 }
-                let corners = self.triangles[id];
-                let s = dot(sub(point, now.base()), t);
-                self.add(
-                    NodeRole::Exit,
-                    point,
-                    s,
-                    &corners,
-                    v_tip,
-                    FrictionState::Stick,
-                )
-                .map_err(|e| self.edit(e))?;
-                self.split_at_last(id);
+                self.pin_at_surface(NodeRole::Exit, id, point, now, v_tip)?;
                 pos.push(point);
                 self.phase = Phase::ExitTouching;
             }
