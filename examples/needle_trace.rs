@@ -26,10 +26,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 s.needle_nodes
             );
             if args.get(3).is_some() {
-                let n: Vec<String> = sim
-                    .needle_nodes()
+                let rest = sim.rest_positions();
+                let nodes = sim.needle_nodes().to_vec();
+                let n: Vec<String> = nodes
                     .iter()
-                    .map(|n| format!("{:?}/{:?}/{:.4}", n.role, n.friction, n.s))
+                    .map(|n| {
+                        let mut p = [[0.0f32; 4]];
+                        let i = n.index as usize;
+                        sim.backend()
+                            .read(needlesim::NodeField::Position, i..i + 1, &mut p)
+                            .unwrap();
+                        format!(
+                            "{:?}/{:?} x {:.4} x0 {:.4} f {:.3}/{:.3}",
+                            n.role, n.friction, p[0][0], rest[i][0], n.axial, n.limit
+                        )
+                    })
                     .collect();
                 println!("    {}", n.join(" "));
             }

@@ -141,6 +141,11 @@ pub struct NeedleNode {
     pub friction: FrictionState,
     /// Axial coordinate from the needle base while sticking, m.
     pub s: f64,
+    /// Axial force the needle exerted on the node in the last step (friction, and
+    /// cutting at the crack front), N, positive along the needle direction.
+    pub axial: f64,
+    /// The static limit of that force forward in the last step (per-length model), N.
+    pub limit: f64,
 }
 
 /// The force the tissue exerts on the needle in one step.
@@ -686,6 +691,8 @@ impl Simulation {
             role,
             friction,
             s,
+            axial: 0.0,
+            limit: 0.0,
         });
         Ok(())
     }
@@ -1205,6 +1212,7 @@ impl Simulation {
                             gravity: dot(self.params.gravity.map(|g| g as f64), t),
                         };
                         let (state, phi) = per_length_step(node.friction, &step, &lim);
+                        self.nodes[k].limit = lim.static_forward;
                         if state != node.friction {
                             self.nodes[k].friction = state;
                             self.nodes[k].s = s[k];
@@ -1232,6 +1240,7 @@ impl Simulation {
                         }
                     }
                 };
+                self.nodes[k].axial = phi;
                 // The shaft takes the normal part; the node keeps its axial force plus
                 // the needle's axial force on it.
                 f[k] = vec4(t.map(|x| (axial + phi) * x), 0.0);
