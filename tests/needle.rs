@@ -264,10 +264,9 @@ fn gpu_and_cpu_agree_on_the_paper_scene() {
 /// through puncture and the first 2.4 cm of insertion: the same puncture state and needle
 /// node count at every step, and the axial force within 1% of the largest force at every
 /// step (measured on lavapipe: 9e-5; 6e-6 over 0.1 s). The margin is for GPUs whose f32
-/// rounding moves a
-/// node's switch between sticking and slipping by a step: each switch moves the force by
-/// up to that node's friction (a tenth of the total here), so a bound on the force
-/// averaged over 0.1 s (5%) is kept as well.
+/// rounding moves a node's switch between sticking and slipping by a step: each switch
+/// moves the force by up to that node's friction (a tenth of the total here), so a bound
+/// on the force averaged over 0.1 s (5%) is kept as well.
 #[test]
 fn gpu_and_cpu_agree_on_the_liver_scene() {
     let text = include_str!("../scenes/liver_insertion.toml")
