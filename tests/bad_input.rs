@@ -390,3 +390,108 @@ fn bad_needle_tables_name_the_key() {
         "{e}"
     );
 }
+
+/// The unit octahedron's faces as corner coordinates (1-based OBJ indices above).
+fn octa_triangles(faces: &[&str]) -> Vec<[[f32; 3]; 3]> {
+    let v = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    faces
+        .iter()
+        .map(|f| {
+            let i: Vec<usize> = f
+                .split_whitespace()
+                .skip(1)
+                .map(|x| x.parse().unwrap())
+                .collect();
+            [v[i[0] - 1], v[i[1] - 1], v[i[2] - 1]]
+        })
+        .collect()
+}
+
+/// ASCII STL text of `triangles` (normals left zero: readers recompute them).
+fn ascii_stl(triangles: &[[[f32; 3]; 3]]) -> String {
+    let mut s = String::from("solid octa\n");
+    for t in triangles {
+        s.push_str("facet normal 0 0 0\nouter loop\n");
+        for p in t {
+            s.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
+        }
+        s.push_str("endloop\nendfacet\n");
+    }
+    s.push_str("endsolid octa\n");
+    s
+}
+
+/// Binary STL bytes of `triangles`: 80-byte header, count, then 50 bytes per triangle.
+fn binary_stl(triangles: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut b = vec![0u8; 80];
+    b.extend_from_slice(&(triangles.len() as u32).to_le_bytes());
+    for t in triangles {
+        b.extend_from_slice(&[0u8; 12]);
+        for p in t {
+            for c in p {
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        b.extend_from_slice(&[0u8; 2]);
+    }
+    b
+}
+
+/// The octahedron as ASCII and as binary STL, written in millimetres and read with
+/// `scale = 0.001`: both enclose the OBJ's 4/3 m^3 and get nodes inside; an open STL, an
+/// inside-out one, a garbled one and a missing one are typed errors naming the file.
+#[test]
+fn stl_surfaces_ascii_and_binary_load_like_obj_and_bad_ones_are_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mm: Vec<[[f32; 3]; 3]> = octa_triangles(&OCTA_FACES)
+        .iter()
+        .map(|t| t.map(|p| p.map(|c| c * 1000.0)))
+        .collect();
+    std::fs::write(d.join("octa_ascii.stl"), ascii_stl(&mm)).unwrap();
+    std::fs::write(d.join("octa_binary.stl"), binary_stl(&mm)).unwrap();
+    let stl_scene = |file: &str| {
+        obj_scene(file).replace(
+            &format!("kind = \"obj\", path = \"{file}\", spacing = 0.25"),
+            &format!("kind = \"stl\", path = \"{file}\", spacing = 0.25, scale = 0.001"),
+        )
+    };
+    for file in ["octa_ascii.stl", "octa_binary.stl"] {
+        let scene = Scene::from_toml_str(&stl_scene(file), d).unwrap();
+        let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{file}: {e}"));
+        // f32 corners scaled in f64: the volume to 1e-9 relative.
+        assert!(
+            (t.volume - 4.0 / 3.0).abs() < 1e-9 * 4.0 / 3.0,
+            "{file}: {}",
+            t.volume
+        );
+        assert!(t.n_mesh > 6, "{file}: {} nodes", t.n_mesh);
+        t.neighbours.check_mutual(t.n_mesh).unwrap();
+    }
+    let mut open = OCTA_FACES.to_vec();
+    open.pop();
+    std::fs::write(d.join("open.stl"), binary_stl(&octa_triangles(&open))).unwrap();
+    let inside_out: Vec<[[f32; 3]; 3]> = octa_triangles(&OCTA_FACES)
+        .iter()
+        .map(|t| [t[0], t[2], t[1]])
+        .collect();
+    std::fs::write(d.join("inside_out.stl"), ascii_stl(&inside_out)).unwrap();
+    std::fs::write(d.join("garbage.stl"), b"solid x\nfacet nonsense\n").unwrap();
+    for (file, want) in [
+        ("open.stl", "surface is open"),
+        ("inside_out.stl", "volume"),
+        ("garbage.stl", "cannot load surface file"),
+        ("missing.stl", "cannot load surface file"),
+    ] {
+        let scene = Scene::from_toml_str(&stl_scene(file), d).unwrap();
+        let e = Tissue::from_scene(&scene).unwrap_err().to_string();
+        assert!(e.contains(want) && e.contains(file), "{file}: {e}");
+    }
+}

@@ -50,22 +50,22 @@ impl SceneError {
 /// A surface mesh that cannot be used as tissue boundary.
 #[derive(Debug, Error)]
 pub enum GeometryError {
-    /// The OBJ file could not be loaded.
-    #[error("cannot load OBJ file {path}: {message}")]
+    /// The OBJ or STL file could not be loaded.
+    #[error("cannot load surface file {path}: {message}")]
     ObjLoad {
         /// The file.
         path: PathBuf,
         /// The loader's message.
         message: String,
     },
-    /// The OBJ file holds no triangle.
-    #[error("OBJ file {path} contains no triangles")]
+    /// The surface file holds no triangle.
+    #[error("surface file {path} contains no triangles")]
     Empty {
         /// The file.
         path: PathBuf,
     },
     /// A vertex coordinate is NaN or infinite.
-    #[error("OBJ file {path}: vertex {vertex} has a non-finite coordinate")]
+    #[error("surface file {path}: vertex {vertex} has a non-finite coordinate")]
     NonFiniteVertex {
         /// The file.
         path: PathBuf,
@@ -73,7 +73,9 @@ pub enum GeometryError {
         vertex: usize,
     },
     /// A triangle references the same vertex twice or has zero area.
-    #[error("OBJ file {path}: triangle {triangle} is degenerate (repeated vertex or zero area)")]
+    #[error(
+        "surface file {path}: triangle {triangle} is degenerate (repeated vertex or zero area)"
+    )]
     DegenerateTriangle {
         /// The file.
         path: PathBuf,
@@ -81,7 +83,7 @@ pub enum GeometryError {
         triangle: usize,
     },
     /// An edge is used by only one triangle: the surface has a hole.
-    #[error("OBJ file {path}: surface is open, edge ({a}, {b}) belongs to only one triangle")]
+    #[error("surface file {path}: surface is open, edge ({a}, {b}) belongs to only one triangle")]
     OpenSurface {
         /// The file.
         path: PathBuf,
@@ -92,7 +94,7 @@ pub enum GeometryError {
     },
     /// An edge is used by more than two triangles, or twice in the same direction.
     #[error(
-        "OBJ file {path}: surface is not manifold or not consistently oriented at edge ({a}, {b})"
+        "surface file {path}: surface is not manifold or not consistently oriented at edge ({a}, {b})"
     )]
     NonManifold {
         /// The file.

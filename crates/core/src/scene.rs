@@ -119,6 +119,9 @@ pub enum Geometry {
     Box(BoxGeometry),
     /// `kind = "obj"`.
     Obj(ObjGeometry),
+    /// `kind = "stl"`: a closed binary or ASCII STL surface, with the same keys and checks
+    /// as `obj`.
+    Stl(ObjGeometry),
 }
 
 /// An axis-aligned box filled with a cubic lattice. Give either `spacing` or a target node
@@ -137,8 +140,9 @@ pub struct BoxGeometry {
     pub nodes: Option<usize>,
 }
 
-/// A closed triangulated surface (Wavefront OBJ). Surface vertices become nodes and the
-/// inside is filled with a cubic lattice of the given spacing.
+/// A closed triangulated surface (Wavefront OBJ, or STL with `kind = "stl"`). Surface
+/// vertices become nodes and the inside is filled with a cubic lattice of the given
+/// spacing.
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ObjGeometry {
@@ -608,6 +612,7 @@ fn de_geometry<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Geometry, D::Er
     de_tagged(d, "tissue.geometry", "kind", |name, v| match name {
         "box" => Some(v.try_into().map(Geometry::Box)),
         "obj" => Some(v.try_into().map(Geometry::Obj)),
+        "stl" => Some(v.try_into().map(Geometry::Stl)),
         _ => None,
     })
 }
@@ -728,7 +733,8 @@ impl Scene {
                     }
                 }
             }
-            Geometry::Obj(ObjGeometry { spacing, scale, .. }) => {
+            Geometry::Obj(ObjGeometry { spacing, scale, .. })
+            | Geometry::Stl(ObjGeometry { spacing, scale, .. }) => {
                 positive_finite("tissue.geometry.spacing", *spacing)?;
                 positive_finite("tissue.geometry.scale", *scale)?;
             }

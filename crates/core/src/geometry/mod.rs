@@ -84,6 +84,19 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             let surface = obj::load_closed_surface(&full, *scale)?;
             Ok(sampling::fill_lattice(&surface, *spacing))
         }
+        Geometry::Stl(crate::scene::ObjGeometry {
+            path,
+            spacing,
+            scale,
+        }) => {
+            let full = if path.is_absolute() {
+                path.clone()
+            } else {
+                base_dir.join(path)
+            };
+            let surface = obj::load_closed_stl(&full, *scale)?;
+            Ok(sampling::fill_lattice(&surface, *spacing))
+        }
     }
 }
 

@@ -1,4 +1,5 @@
-//! Wavefront OBJ import of a closed tissue surface.
+//! Wavefront OBJ and STL (binary or ASCII, read with `stl_io`) import of a closed tissue
+//! surface.
 //!
 //! Polygons are triangulated, all objects of the file are merged, vertices at bit-identical
 //! positions are welded (files that repeat a vertex per face become connected), and
@@ -59,6 +60,41 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         }
     }
     from_triangles(path, &raw_vertices, &raw_triangles).map_err(Into::into)
+}
+
+/// Loads a binary or ASCII STL file, scales its coordinates and checks that it bounds a
+/// volume. STL stores each triangle's corners on their own: corners at bit-identical
+/// positions are welded, so a surface is closed only if its file repeats shared corners
+/// exactly (as exporters do).
+pub fn load_closed_stl(path: &Path, scale: f64) -> Result<Surface, SceneError> {
+    let load = |message: String| GeometryError::ObjLoad {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut file = std::fs::File::open(path).map_err(|e| load(e.to_string()))?;
+    let mesh = stl_io::read_stl(&mut file).map_err(|e| load(e.to_string()))?;
+    let mut vertices = Vec::with_capacity(mesh.vertices.len());
+    for (i, v) in mesh.vertices.iter().enumerate() {
+        let p = [
+            v[0] as f64 * scale,
+            v[1] as f64 * scale,
+            v[2] as f64 * scale,
+        ];
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(GeometryError::NonFiniteVertex {
+                path: path.to_path_buf(),
+                vertex: i,
+            }
+            .into());
+        }
+        vertices.push(p);
+    }
+    let triangles: Vec<[u32; 3]> = mesh
+        .faces
+        .iter()
+        .map(|f| f.vertices.map(|i| i as u32))
+        .collect();
+    from_triangles(path, &vertices, &triangles).map_err(Into::into)
 }
 
 /// Welds, compacts and checks a triangle soup. `path` only names the source in errors.
