@@ -71,31 +71,17 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             };
             Ok(lattice.cloud())
         }
-        Geometry::Obj(crate::scene::ObjGeometry {
-            path,
-            spacing,
-            scale,
-        }) => {
-            let full = if path.is_absolute() {
-                path.clone()
+        Geometry::Obj(g) | Geometry::Stl(g) => {
+            let full = if g.path.is_absolute() {
+                g.path.clone()
             } else {
-                base_dir.join(path)
+                base_dir.join(&g.path)
             };
-            let surface = obj::load_closed_surface(&full, *scale)?;
-            Ok(sampling::fill_lattice(&surface, *spacing))
-        }
-        Geometry::Stl(crate::scene::ObjGeometry {
-            path,
-            spacing,
-            scale,
-        }) => {
-            let full = if path.is_absolute() {
-                path.clone()
-            } else {
-                base_dir.join(path)
+            let surface = match geometry {
+                Geometry::Stl(_) => obj::load_closed_stl(&full, g.scale)?,
+                _ => obj::load_closed_surface(&full, g.scale)?,
             };
-            let surface = obj::load_closed_stl(&full, *scale)?;
-            Ok(sampling::fill_lattice(&surface, *spacing))
+            Ok(sampling::fill_lattice(&surface, g.spacing))
         }
     }
 }
