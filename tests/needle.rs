@@ -217,6 +217,30 @@ fn gpu_sim(scene: &Scene) -> Option<Simulation> {
     }
 }
 
+/// Asserts the same puncture state and needle node count at every step of two runs, and
+/// returns the largest |axial force| of `hc` and the largest per-step axial force
+/// difference up to time `until`, relative to that scale.
+fn same_states_force_difference(
+    hg: &[needlesim::needle::NeedleSample],
+    hc: &[needlesim::needle::NeedleSample],
+    until: f64,
+) -> (f64, f64) {
+    let scale = hc.iter().map(|s| s.force.axial.abs()).fold(0.0, f64::max);
+    let mut largest = 0.0f64;
+    for (a, b) in hg.iter().zip(hc) {
+        assert_eq!(
+            (a.state, a.needle_nodes),
+            (b.state, b.needle_nodes),
+            "step {}",
+            a.step
+        );
+        if a.time <= until {
+            largest = largest.max((a.force.axial - b.force.axial).abs() / scale);
+        }
+    }
+    (scale, largest)
+}
+
 /// The paper's scene (LSHM) on the GPU and on the CPU: the same state and needle node
 /// count at every step; the needle force within 0.1% of its scale at every step of the
 /// straight insertion; during the rotation, where sticking and slipping nodes switch every
@@ -232,19 +256,7 @@ fn gpu_and_cpu_agree_on_the_paper_scene() {
     g.step_n(steps).unwrap();
     c.step_n(steps).unwrap();
     let (hg, hc) = (g.history(), c.history());
-    let scale = hc.iter().map(|s| s.force.axial.abs()).fold(0.0, f64::max);
-    let mut straight = 0.0f64;
-    for (a, b) in hg.iter().zip(hc) {
-        assert_eq!(
-            (a.state, a.needle_nodes),
-            (b.state, b.needle_nodes),
-            "step {}",
-            a.step
-        );
-        if a.time <= 3.0 {
-            straight = straight.max((a.force.axial - b.force.axial).abs() / scale);
-        }
-    }
+    let (scale, straight) = same_states_force_difference(hg, hc, 3.0);
     let mut windowed = 0.0f64;
     for (a, b) in hg.chunks(100).zip(hc.chunks(100)) {
         let mean = |h: &[needlesim::needle::NeedleSample]| {
@@ -282,17 +294,7 @@ fn gpu_and_cpu_agree_on_the_liver_scene() {
         hc.iter().any(|s| s.state == PunctureState::Inside),
         "the run must reach puncture"
     );
-    let scale = hc.iter().map(|s| s.force.axial.abs()).fold(0.0, f64::max);
-    let mut per_step = 0.0f64;
-    for (a, b) in hg.iter().zip(hc) {
-        assert_eq!(
-            (a.state, a.needle_nodes),
-            (b.state, b.needle_nodes),
-            "step {}",
-            a.step
-        );
-        per_step = per_step.max((a.force.axial - b.force.axial).abs() / scale);
-    }
+    let (scale, per_step) = same_states_force_difference(hg, hc, f64::INFINITY);
     let window = (0.1 / c.dt()).ceil() as usize;
     let mut windowed = 0.0f64;
     for (a, b) in hg.chunks(window).zip(hc.chunks(window)) {

@@ -41,18 +41,7 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         let mesh = &model.mesh;
         let offset = raw_vertices.len() as u32;
         for (i, p) in mesh.positions.chunks_exact(3).enumerate() {
-            let v = [
-                p[0] as f64 * scale,
-                p[1] as f64 * scale,
-                p[2] as f64 * scale,
-            ];
-            if !v.iter().all(|c| c.is_finite()) {
-                return Err(GeometryError::NonFiniteVertex {
-                    path: path.to_path_buf(),
-                    vertex: raw_vertices.len() + i,
-                }
-                .into());
-            }
+            let v = scaled_vertex(path, raw_vertices.len() + i, [p[0], p[1], p[2]], scale)?;
             raw_vertices.push(v);
         }
         for t in mesh.indices.chunks_exact(3) {
@@ -60,6 +49,24 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         }
     }
     from_triangles(path, &raw_vertices, &raw_triangles).map_err(Into::into)
+}
+
+/// A file vertex `p` times `scale`, or the error naming vertex `index` if not finite.
+fn scaled_vertex(
+    path: &Path,
+    index: usize,
+    p: [f32; 3],
+    scale: f64,
+) -> Result<[f64; 3], GeometryError> {
+    let v = p.map(|c| c as f64 * scale);
+    if v.iter().all(|c| c.is_finite()) {
+        Ok(v)
+    } else {
+        Err(GeometryError::NonFiniteVertex {
+            path: path.to_path_buf(),
+            vertex: index,
+        })
+    }
 }
 
 /// Loads a binary or ASCII STL file, scales its coordinates and checks that it bounds a
@@ -75,19 +82,7 @@ pub fn load_closed_stl(path: &Path, scale: f64) -> Result<Surface, SceneError> {
     let mesh = stl_io::read_stl(&mut file).map_err(|e| load(e.to_string()))?;
     let mut vertices = Vec::with_capacity(mesh.vertices.len());
     for (i, v) in mesh.vertices.iter().enumerate() {
-        let p = [
-            v[0] as f64 * scale,
-            v[1] as f64 * scale,
-            v[2] as f64 * scale,
-        ];
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(GeometryError::NonFiniteVertex {
-                path: path.to_path_buf(),
-                vertex: i,
-            }
-            .into());
-        }
-        vertices.push(p);
+        vertices.push(scaled_vertex(path, i, [v[0], v[1], v[2]], scale)?);
     }
     let triangles: Vec<[u32; 3]> = mesh
         .faces
