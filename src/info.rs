@@ -22,8 +22,10 @@ pub struct SceneInfo {
     pub triangles: usize,
     /// Node bounds (min, max) in m.
     pub bounds: ([f64; 3], [f64; 3]),
-    /// Mass per node in kg.
-    pub node_mass: f64,
+    /// Smallest, mean and largest node mass in kg.
+    pub node_masses: [f64; 3],
+    /// Total mass of the mesh nodes in kg.
+    pub mass: f64,
     /// Volume in m^3.
     pub volume: f64,
     /// Smallest, mean and largest node volume `V_i` in m^3 (continuum models only).
@@ -34,6 +36,13 @@ pub struct SceneInfo {
     pub neighbours: NeighbourStats,
     /// Every simulation array.
     pub arrays: Vec<ArrayInfo>,
+}
+
+fn min_mean_max(v: &[f64]) -> [f64; 3] {
+    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let min = v.iter().cloned().fold(f64::INFINITY, f64::min);
+    let max = v.iter().cloned().fold(0.0, f64::max);
+    [min, mean, max]
 }
 
 impl SceneInfo {
@@ -63,14 +72,12 @@ impl SceneInfo {
             fixed: t.n_fixed,
             triangles: t.triangles.len(),
             bounds: needlesim_core::geometry::bounds(&rest),
-            node_mass: t.node_mass,
+            node_masses: min_mean_max(&t.masses),
+            mass: t.masses.iter().sum(),
             volume: t.volume,
             node_volumes: t.shape.node_volumes(n).map(|v| {
                 let v: Vec<f64> = v.iter().map(|&x| x as f64).collect();
-                let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
-                let min = v.iter().cloned().fold(f64::INFINITY, f64::min);
-                let max = v.iter().cloned().fold(0.0, f64::max);
-                [min, mean, max]
+                min_mean_max(&v)
             }),
             k: t.neighbours.k,
             neighbours: t.neighbours.stats(n),
@@ -108,10 +115,11 @@ impl fmt::Display for SceneInfo {
             "bounds     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}] m",
             lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
         )?;
+        let [lo, mean, hi] = self.node_masses;
         writeln!(
             f,
-            "volume     {:.4e} m^3, node mass {:.4e} kg",
-            self.volume, self.node_mass
+            "volume     {:.4e} m^3, mass {:.4e} kg (node min {lo:.4e} mean {mean:.4e} max {hi:.4e} kg)",
+            self.volume, self.mass
         )?;
         if let Some([min, mean, max]) = self.node_volumes {
             writeln!(

@@ -8,6 +8,7 @@ use needlesim_core::{
 };
 use needlesim_gpu::GpuBackend;
 use needlesim_needle::{NeedleSample, Simulation, SimulationError};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use thiserror::Error;
@@ -233,6 +234,20 @@ pub fn run_scene(
         }
     }
 
+    // The reactions of the held sets, one row per frame.
+    let mut reactions = None;
+    if options.write_files && !sim.boundary().held.is_empty() {
+        let path = options.out_dir.join("reactions.csv");
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);
+        let mut header = String::from("frame,step,time_s");
+        for h in &sim.boundary().held {
+            for c in ["x", "y", "z"] {
+                header.push_str(&format!(",{}_f{c}_n", h.name));
+            }
+        }
+        writeln!(w, "{header}").map_err(io(&path))?;
+        reactions = Some((path, w));
+    }
     let mut frames = Vec::new();
     let mut step_time = Duration::ZERO;
     let mut done = 0u64;
@@ -261,6 +276,14 @@ pub fn run_scene(
             )
             .map_err(io(&options.out_dir))?;
         }
+        if let Some((path, w)) = reactions.as_mut() {
+            let r = sim.reactions()?;
+            let mut row = format!("{},{},{:.6e}", m.frame, m.step, m.time);
+            for f in r.iter().flat_map(|r| r.force) {
+                row.push_str(&format!(",{f:.6e}"));
+            }
+            writeln!(w, "{row}").map_err(io(path))?;
+        }
         frames.push(m);
         progress(done, total);
         if done >= total {
@@ -279,6 +302,10 @@ pub fn run_scene(
     }
     if let Some(w) = surface {
         files.extend(w.finish().map_err(io(&options.out_dir))?);
+    }
+    if let Some((path, mut w)) = reactions {
+        w.flush().map_err(io(&path))?;
+        files.push(path);
     }
     if has_needle && options.write_files {
         files.extend(

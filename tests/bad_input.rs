@@ -191,33 +191,67 @@ const OCTA_FACES: [&str; 8] = [
 fn a_closed_obj_is_filled_with_nodes() {
     let dir = tempfile::tempdir().unwrap();
     write_obj(dir.path(), "octa.obj", &octahedron(&OCTA_FACES));
-    let scene = Scene::from_toml_str(&obj_scene("octa.obj"), dir.path()).unwrap();
-    let t = Tissue::from_scene(&scene).unwrap();
-    // Volume of the octahedron |x|+|y|+|z| <= 1 is 4/3.
-    assert!((t.volume - 4.0 / 3.0).abs() < 1e-9, "volume {}", t.volume);
-    assert!(t.n_mesh > 6, "interior nodes were added: {}", t.n_mesh);
-    for p in &t.state.positions[6..t.n_mesh] {
-        let l1 = p[0].abs() + p[1].abs() + p[2].abs();
-        assert!(l1 < 1.0, "interior node {p:?} outside");
+    let h = 0.25;
+    for surface in ["vertices", "resample"] {
+        let text = obj_scene("octa.obj").replace(
+            "spacing = 0.25 }",
+            &format!("spacing = {h}, surface = \"{surface}\" }}"),
+        );
+        let scene = Scene::from_toml_str(&text, dir.path()).unwrap();
+        let t = Tissue::from_scene(&scene).unwrap();
+        // Volume of the octahedron |x|+|y|+|z| <= 1 is 4/3.
+        assert!((t.volume - 4.0 / 3.0).abs() < 1e-9, "volume {}", t.volume);
+        // The surface nodes are the triangles' corners, the interior nodes follow.
+        let n_surface = t.triangles.iter().flatten().max().unwrap() + 1;
+        let l1 = |p: &[f32; 4]| p[0].abs() + p[1].abs() + p[2].abs();
+        if surface == "vertices" {
+            assert_eq!(n_surface, 6);
+        } else {
+            // About one spacing apart over the surface (area 4 sqrt(3) = 6.9): some
+            // dozens, each on the surface or kept inside its lattice cube (within a
+            // spacing of it).
+            assert!((40..400).contains(&n_surface), "{n_surface} surface nodes");
+            for p in &t.state.positions[..n_surface as usize] {
+                assert!(
+                    (l1(p) - 1.0).abs() < 3f32.sqrt() * h as f32,
+                    "{p:?} off the surface"
+                );
+            }
+        }
+        assert!(
+            t.n_mesh > n_surface as usize,
+            "interior nodes were added: {}",
+            t.n_mesh
+        );
+        for p in &t.state.positions[n_surface as usize..t.n_mesh] {
+            // At least h / 2 from the surface: l1 <= 1 - sqrt(3) h / 2.
+            assert!(
+                l1(p) < 1.0 - 0.85 * h as f32,
+                "interior node {p:?} too close or outside"
+            );
+        }
+        t.neighbours.check_mutual(t.n_mesh).unwrap();
+        // A continuum model gets the nodes' cells (sub-sampled): they add up to the
+        // enclosed volume, none is negative, and each of the six tips (the surface
+        // vertices, whose cells are thin cones) gets less than the largest interior cell
+        // (h^3 = 0.0156).
+        let deb = text.replace(
+            "model = \"mass_spring\"\nstiffness = 1.0",
+            "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
+        );
+        let t = Tissue::from_scene(&Scene::from_toml_str(&deb, dir.path()).unwrap()).unwrap();
+        let v = t.shape.node_volumes(t.n_mesh).unwrap();
+        let total: f64 = v.iter().map(|&x| x as f64).sum();
+        assert!(
+            (total - 4.0 / 3.0).abs() < 1e-5,
+            "cell volumes add up to {total}"
+        );
+        assert!(v.iter().all(|&x| x > 0.0));
+        if surface == "vertices" {
+            let largest = v[6..].iter().cloned().fold(0.0f32, f32::max);
+            assert!(v[..6].iter().all(|&x| x < largest), "{v:?}");
+        }
     }
-    t.neighbours.check_mutual(t.n_mesh).unwrap();
-    // A continuum model gets the nodes' cells (sub-sampled): they add up to the enclosed
-    // volume, none is negative, and each of the six tips (the surface vertices, whose
-    // cells are thin cones) gets less than the largest interior cell (h^3 = 0.0156).
-    let deb = obj_scene("octa.obj").replace(
-        "model = \"mass_spring\"\nstiffness = 1.0",
-        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
-    );
-    let t = Tissue::from_scene(&Scene::from_toml_str(&deb, dir.path()).unwrap()).unwrap();
-    let v = t.shape.node_volumes(t.n_mesh).unwrap();
-    let total: f64 = v.iter().map(|&x| x as f64).sum();
-    assert!(
-        (total - 4.0 / 3.0).abs() < 1e-5,
-        "cell volumes add up to {total}"
-    );
-    assert!(v.iter().all(|&x| x >= 0.0));
-    let largest = v[6..].iter().cloned().fold(0.0f32, f32::max);
-    assert!(v[..6].iter().all(|&x| x < largest), "{v:?}");
 }
 
 #[test]

@@ -112,6 +112,15 @@ pub enum GeometryError {
         /// Signed volume.
         volume: f64,
     },
+    /// Resampling at the scene's spacing found no surface: the body is thinner than the
+    /// spacing everywhere.
+    #[error("surface {path}: no lattice point of spacing {spacing} m falls inside it (the body is thinner than the spacing; reduce `tissue.geometry.spacing`, or check `scale`)")]
+    TooThin {
+        /// The file.
+        path: PathBuf,
+        /// The spacing.
+        spacing: f64,
+    },
     /// Sampling produced too few nodes for the requested neighbour count.
     #[error("geometry has {nodes} nodes, too few for `tissue.neighbours` = {neighbours} (needs at least {neighbours} + 1)")]
     TooFewNodes {

@@ -19,6 +19,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod backend;
+pub mod boundary;
 pub mod calibration;
 pub mod cpu;
 pub mod error;

@@ -1,12 +1,16 @@
-//! Building the simulated tissue from a scene: node cloud, masses, fixed nodes,
+//! Building the simulated tissue from a scene: node cloud, lumped masses (`density` times
+//! each node's cell volume by default), fixed nodes,
 //! neighbours, the chosen model's shape information and the initial deformation.
 
+use crate::boundary::{Boundary, HeldSet, LoadSet};
 use crate::error::{GeometryError, SceneError};
 use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
 use crate::models::{ArrayInfo, ShapeInfo};
 use crate::neighbours::Neighbours;
-use crate::scene::{MassSpringParams, Material, Scene, SpringShare, TimeStep, AUTO_DT_SAFETY};
+use crate::scene::{
+    MassSpringParams, Material, NodeMasses, Scene, SpringShare, TimeStep, AUTO_DT_SAFETY,
+};
 use crate::state::NodeState;
 
 /// Everything a backend needs to simulate the tissue.
@@ -26,12 +30,17 @@ pub struct Tissue {
     pub material: Material,
     /// Time-stepping parameters.
     pub step: crate::integrator::StepParams,
-    /// Mass of one node in kg.
+    /// Mass of each mesh node in kg; they add up to `density * volume`.
+    pub masses: Vec<f64>,
+    /// Mass in kg of a node the needle adds inside the tissue: an interior node's,
+    /// `density * spacing^3` (with `masses = "uniform"`, the mesh nodes' common mass).
     pub node_mass: f64,
     /// Volume enclosed by the surface in m^3.
     pub volume: f64,
-    /// Number of fixed nodes.
+    /// Number of fixed nodes (inverse mass 0: held in all components).
     pub n_fixed: usize,
+    /// Held node sets and surface loads.
+    pub boundary: Boundary,
 }
 
 impl Tissue {
@@ -71,25 +80,29 @@ impl Tissue {
                 n,
             );
         }
-        let node_mass = scene.tissue.density * cloud.volume / n as f64;
-        let mut fixed = vec![false; n];
-        for (s, sel) in scene.fixed.iter().enumerate() {
-            let mut any = false;
-            for (i, p) in cloud.positions.iter().enumerate() {
-                if sel.contains(*p) {
-                    fixed[i] = true;
-                    any = true;
-                }
+        let rho = scene.tissue.density;
+        let (masses, node_mass) = match scene.tissue.masses {
+            NodeMasses::Cell => (
+                cloud
+                    .node_volumes
+                    .iter()
+                    .map(|v| rho * v)
+                    .collect::<Vec<f64>>(),
+                rho * cloud.spacing.powi(3),
+            ),
+            NodeMasses::Uniform => {
+                let m = rho * cloud.volume / n as f64;
+                (vec![m; n], m)
             }
-            if !any {
-                return Err(SceneError::invalid(
-                    format!("fixed[{s}]"),
-                    "selects no node (check the axis and the coordinate against the geometry's bounds)",
-                ));
-            }
+        };
+        if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
+            return Err(SceneError::invalid(
+                "tissue.density",
+                format!("node {i} gets mass {} kg: density times its cell volume must be a finite positive number", masses[i]),
+            ));
         }
+        let (boundary, fixed) = build_boundary(scene, &cloud, &masses)?;
         let n_fixed = fixed.iter().filter(|&&f| f).count();
-        let inv_mass = (1.0 / node_mass) as f32;
         let mut rest: Vec<Vec4> = cloud
             .positions
             .iter()
@@ -122,11 +135,13 @@ impl Tissue {
                 let p = cloud.positions[i];
                 if fixed[i] {
                     [p[0] as f32, p[1] as f32, p[2] as f32, 0.0]
-                } else if s == [1.0; 3] {
-                    [p[0] as f32, p[1] as f32, p[2] as f32, inv_mass]
                 } else {
-                    let q: [f64; 3] =
-                        std::array::from_fn(|a| centre[a] + s[a] * (p[a] - centre[a]));
+                    let inv_mass = (1.0 / masses[i]) as f32;
+                    let q: [f64; 3] = if s == [1.0; 3] {
+                        p
+                    } else {
+                        std::array::from_fn(|a| centre[a] + s[a] * (p[a] - centre[a]))
+                    };
                     [q[0] as f32, q[1] as f32, q[2] as f32, inv_mass]
                 }
             })
@@ -139,9 +154,11 @@ impl Tissue {
             n_mesh: n,
             material: scene.material,
             step: crate::integrator::StepParams::new(1e-3, &scene.physics),
+            masses,
             node_mass,
             volume: cloud.volume,
             n_fixed,
+            boundary,
         };
         let dt = match scene.physics.dt {
             TimeStep::Seconds(dt) => dt,
@@ -196,4 +213,116 @@ impl Tissue {
         out.extend(self.shape.arrays());
         out
     }
+}
+
+/// The held sets and loads of a scene, and which nodes get inverse mass 0 (held in all
+/// components). Errors name the table: a set that selects no node, a prescribed
+/// displacement on a node that `[[fixed]]` holds in all components, a load on no surface
+/// node.
+fn build_boundary(
+    scene: &Scene,
+    cloud: &NodeCloud,
+    masses: &[f64],
+) -> Result<(Boundary, Vec<bool>), SceneError> {
+    let rest = &cloud.positions;
+    let n = rest.len();
+    let mut fixed = vec![false; n];
+    let mut boundary = Boundary::default();
+    let empty = |key: String| {
+        SceneError::invalid(
+            key,
+            "selects no node (check the coordinates against the geometry's bounds)",
+        )
+    };
+    for (s, f) in scene.fixed.iter().enumerate() {
+        let nodes = f.nodes.select(rest);
+        if nodes.is_empty() {
+            return Err(empty(format!("fixed[{s}]")));
+        }
+        if f.components.all() {
+            nodes.iter().for_each(|&i| fixed[i as usize] = true);
+        }
+        boundary.held.push(HeldSet::new(
+            f.name.clone().unwrap_or_else(|| format!("fixed{s}")),
+            nodes,
+            f.components.0,
+            None,
+            rest,
+            masses,
+        ));
+    }
+    let held_by_fixed = fixed.clone();
+    for (s, p) in scene.prescribed.iter().enumerate() {
+        let nodes = p.nodes.select(rest);
+        if nodes.is_empty() {
+            return Err(empty(format!("prescribed[{s}]")));
+        }
+        if let Some(&i) = nodes.iter().find(|&&i| held_by_fixed[i as usize]) {
+            return Err(SceneError::invalid(
+                format!("prescribed[{s}]"),
+                format!(
+                    "moves node {i}, which a [[fixed]] set holds in every component: a \
+                     node cannot be both held at rest and moved"
+                ),
+            ));
+        }
+        if p.components.all() {
+            nodes.iter().for_each(|&i| fixed[i as usize] = true);
+        }
+        boundary.held.push(HeldSet::new(
+            p.name.clone().unwrap_or_else(|| format!("prescribed{s}")),
+            nodes,
+            p.components.0,
+            Some(p.motion),
+            rest,
+            masses,
+        ));
+    }
+    for (s, l) in scene.load.iter().enumerate() {
+        // The loaded surface: the triangles whose corners are all in the set.
+        let mut member = vec![false; n];
+        l.nodes
+            .select(rest)
+            .into_iter()
+            .for_each(|i| member[i as usize] = true);
+        let loaded: Vec<[u32; 3]> = cloud
+            .triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| member[v as usize]))
+            .copied()
+            .collect();
+        let area = crate::geometry::vertex_area_vectors(rest, &loaded);
+        let nodes: Vec<u32> = (0..n as u32)
+            .filter(|&i| area[i as usize] != [0.0; 3])
+            .collect();
+        {
+            if nodes.is_empty() {
+                return Err(SceneError::invalid(
+                    format!("load[{s}]"),
+                    "covers no surface triangle (a load acts on the triangles whose three \
+                     corners the set selects)",
+                ));
+            }
+            let forces = nodes
+                .iter()
+                .map(|&i| {
+                    let a = area[i as usize];
+                    match l.load {
+                        crate::scene::SurfaceLoad::Traction(t) => {
+                            let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                            t.map(|c| c * len)
+                        }
+                        crate::scene::SurfaceLoad::Pressure(p) => a.map(|c| -p * c),
+                    }
+                })
+                .collect();
+            boundary.loads.push(LoadSet {
+                name: l.name.clone().unwrap_or_else(|| format!("load{s}")),
+                nodes,
+                forces,
+                ramp: l.ramp,
+            });
+        }
+    }
+    Ok((boundary, fixed))
 }

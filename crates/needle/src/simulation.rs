@@ -60,6 +60,7 @@ use crate::puncture::{
 };
 use crate::script::PoseScript;
 use crate::surface_query::{segment_triangle, TriangleGrid};
+use needlesim_core::boundary::{Boundary, Reaction};
 use needlesim_core::integrator::StepParams;
 use needlesim_core::math::Vec4;
 use needlesim_core::scene::Material;
@@ -269,7 +270,7 @@ impl Prepared {
                 },
             ),
         };
-        Ok(Simulation {
+        let mut sim = Simulation {
             dt: self.tissue.step.dt as f64,
             params: self.tissue.step,
             backend,
@@ -299,7 +300,11 @@ impl Prepared {
             rest: self.rest,
             max_speed: self.guard.0,
             check_every: self.guard.1,
-        })
+            boundary: self.tissue.boundary.clone(),
+        };
+        // Prescribed displacements hold from the start (a ramp starts at zero).
+        sim.boundary.project(sim.backend.as_mut(), 0.0)?;
+        Ok(sim)
     }
 }
 
@@ -341,6 +346,7 @@ pub struct Simulation {
     rest: Vec<[f64; 3]>,
     max_speed: f64,
     check_every: u64,
+    boundary: Boundary,
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -561,7 +567,7 @@ impl Simulation {
     /// Runs `n` steps (without a needle, in batches between divergence checks: the GPU
     /// backend queues each batch without waiting).
     pub fn step_n(&mut self, n: u64) -> Result<(), SimulationError> {
-        if self.needle.is_none() {
+        if self.needle.is_none() && !self.boundary.acts_each_step() {
             let mut left = n;
             while left > 0 {
                 let batch = left.min(self.check_every - self.steps % self.check_every);
@@ -581,6 +587,18 @@ impl Simulation {
         Ok(())
     }
 
+    /// The force each held set's supports (`[[fixed]]`, `[[prescribed]]`) exert on the
+    /// body, from the forces of the last step ([`Boundary::reactions`]).
+    pub fn reactions(&mut self) -> Result<Vec<Reaction>, SimulationError> {
+        let g = self.params.gravity.map(|g| g as f64);
+        Ok(self.boundary.reactions(self.backend.as_mut(), g)?)
+    }
+
+    /// The held sets and loads.
+    pub fn boundary(&self) -> &Boundary {
+        &self.boundary
+    }
+
     /// The divergence guard: an error naming the step and node if a position or velocity
     /// is not finite or a free node is faster than `physics.max_speed`. Run every
     /// `physics.check_every` steps by [`Simulation::step`] and [`Simulation::step_n`].
@@ -592,7 +610,20 @@ impl Simulation {
     /// Runs one step.
     pub fn step(&mut self) -> Result<(), SimulationError> {
         let (Some(prev), Some(_)) = (self.prev, self.needle) else {
-            return self.step_n(1);
+            if !self.boundary.acts_each_step() {
+                return self.step_n(1);
+            }
+            self.backend.compute_forces();
+            self.boundary
+                .apply_loads(self.backend.as_mut(), self.time)?;
+            self.backend.integrate();
+            self.time += self.dt;
+            self.steps += 1;
+            self.boundary.project(self.backend.as_mut(), self.time)?;
+            if self.steps.is_multiple_of(self.check_every) {
+                self.check()?;
+            }
+            return Ok(());
         };
         if let Some(s) = &self.script {
             self.needle = Some(s.pose_at(self.time + self.dt));
@@ -605,9 +636,12 @@ impl Simulation {
         self.constrain(&prev, &now)?;
         self.backend.compute_forces();
         self.apply_friction(&prev, &now)?;
+        self.boundary
+            .apply_loads(self.backend.as_mut(), self.time)?;
         self.backend.integrate();
         self.time += self.dt;
         self.steps += 1;
+        self.boundary.project(self.backend.as_mut(), self.time)?;
         if self.steps.is_multiple_of(self.check_every) {
             self.check()?;
         }

@@ -2,35 +2,22 @@
 //! part of the body nearer to it than to any other node (its Voronoi cell clipped to the
 //! body), estimated by sub-sampling.
 //!
-//! The lattice of [`super::sampling`] (spacing `h`) is refined into `SUBDIVISION^3`
-//! sub-points per lattice point; every sub-point inside the surface adds `(h / s)^3` to its
-//! nearest node. A lattice point farther from the surface than the half diagonal of its
-//! block of sub-points gives the whole block its own inside/outside status; only blocks
-//! that touch the surface test each sub-point (generalised winding number). The estimates
-//! are finally scaled to add up to the enclosed volume, which removes the O(h / s)
-//! sampling error of the total.
+//! Every lattice spacing `h` is divided into `SUBDIVISION` sub-points along each axis;
+//! every sub-point inside the surface ([`super::ray_columns`]) adds `(h / s)^3` to its
+//! nearest node. A node that no sub-point reaches (a surface vertex at a sharp tip) gets
+//! one sub-cell, so that no node is massless. The estimates are finally scaled to add up
+//! to the enclosed volume, which removes the O(h / s) sampling error of the total.
+
+use super::ray_columns::ColumnCrossings;
+use super::sampling::Lattice;
 
 /// Sub-points per lattice spacing along each axis (even, so that no sub-point falls on
 /// the mid-plane between two lattice points).
 pub const SUBDIVISION: usize = 4;
 
-/// The sampling lattice and what is known of each of its points.
-#[derive(Debug, Clone)]
-pub struct Lattice {
-    /// Position of lattice point (0, 0, 0).
-    pub origin: [f64; 3],
-    /// Points along each axis.
-    pub dims: [usize; 3],
-    /// Spacing in metres.
-    pub spacing: f64,
-    /// Winding number > 1/2 at each point (x fastest).
-    pub inside: Vec<bool>,
-    /// Distance from each point to the surface.
-    pub distance: Vec<f64>,
-}
-
 /// Cell volume of every node of `nodes`, scaled to add up to `total_volume`.
-/// `triangles` are the surface triangles as vertex coordinates.
+/// `triangles` are the surface triangles as corner coordinates; the sub-points fill the
+/// cubes of side `h` centred on the points of `lattice`.
 pub fn estimate(
     nodes: &[[f64; 3]],
     triangles: &[[[f64; 3]; 3]],
@@ -41,34 +28,29 @@ pub fn estimate(
     let s = SUBDIVISION;
     let h = lattice.spacing;
     let sub = h / s as f64;
-    let half_diagonal = 0.5 * h * 3f64.sqrt();
+    let origin: [f64; 3] = std::array::from_fn(|a| lattice.origin[a] - 0.5 * h + 0.5 * sub);
+    let [nx, ny, nz] = lattice.dims.map(|n| n * s);
+    let columns = ColumnCrossings::build(triangles, [origin[0], origin[1]], sub, nx, ny);
     let mut count = vec![0u64; nodes.len()];
-    let [nx, ny, nz] = lattice.dims;
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let idx = i + nx * (j + ny * k);
-                let centre = [i, j, k].map(|c| c as f64 * h);
-                let centre: [f64; 3] = std::array::from_fn(|a| lattice.origin[a] + centre[a]);
-                let settled = lattice.distance[idx] > half_diagonal;
-                if settled && !lattice.inside[idx] {
-                    continue;
-                }
-                for c in 0..s {
-                    for b in 0..s {
-                        for a in 0..s {
-                            let off = |t: usize| ((t as f64 + 0.5) / s as f64 - 0.5) * h;
-                            let p = [centre[0] + off(a), centre[1] + off(b), centre[2] + off(c)];
-                            if settled || super::sampling::winding_number(p, triangles) > 0.5 {
-                                if let Some(n) = grid.nearest(nodes, p) {
-                                    count[n] += 1;
-                                }
-                            }
-                        }
+    for j in 0..ny {
+        for i in 0..nx {
+            for (k, inside) in columns
+                .inside_column(i, j, origin[2], sub, nz)
+                .into_iter()
+                .enumerate()
+            {
+                if inside {
+                    let p = [i as f64, j as f64, k as f64];
+                    let p: [f64; 3] = std::array::from_fn(|a| origin[a] + p[a] * sub);
+                    if let Some(n) = grid.nearest(nodes, p) {
+                        count[n] += 1;
                     }
                 }
             }
         }
+    }
+    for c in &mut count {
+        *c = (*c).max(1);
     }
     let sampled: f64 = count.iter().map(|&c| c as f64).sum::<f64>() * sub.powi(3);
     let scale = if sampled > 0.0 {
@@ -179,32 +161,16 @@ mod tests {
             .iter()
             .map(|t| t.map(|i| c.positions[i as usize]))
             .collect();
-        let h = 0.01;
-        let dims = l.dims;
-        let mut inside = Vec::new();
-        let mut distance = Vec::new();
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let p = [i as f64 * h, j as f64 * h, k as f64 * h];
-                    inside.push(super::super::sampling::winding_number(p, &tris) > 0.5);
-                    distance.push(super::super::sampling::distance_to_triangles(p, &tris));
-                }
-            }
-        }
         let lattice = Lattice {
             origin: [0.0; 3],
-            dims,
-            spacing: h,
-            inside,
-            distance,
+            dims: l.dims,
+            spacing: 0.01,
         };
         let v = estimate(&c.positions, &tris, &lattice, c.volume);
         let total: f64 = v.iter().sum();
         assert!((total - c.volume).abs() < 1e-12 * c.volume);
-        // Lattice points on the faces have winding number 1/2 and distance 0, so their
-        // blocks are sub-sampled; sub-points on a face (none with an even subdivision)
-        // would be ambiguous. Each cell is then exact.
+        // No sub-point lies on a face or on a mid-plane between two nodes (even
+        // subdivision), so each cell is exact.
         for (n, (got, want)) in v.iter().zip(&c.node_volumes).enumerate() {
             assert!(
                 (got - want).abs() < 1e-9 * want,

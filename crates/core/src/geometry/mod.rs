@@ -1,16 +1,28 @@
 //! Tissue geometry: the rest positions of the nodes and the closed triangulated surface
 //! that bounds them (used for output and, later, for needle contact).
 //!
-//! Two sources: a box filled with a cubic lattice ([`box_lattice`]) and a closed OBJ
-//! surface whose inside is filled with a cubic lattice ([`obj`], [`sampling`]).
+//! Two sources: a box filled with a cubic lattice ([`box_lattice`]) and a closed surface
+//! file (OBJ or STL, [`obj`]) resampled at the scene's spacing ([`resample`]) or keeping
+//! its own vertices ([`sampling`]), its inside filled with a cubic lattice.
 
 pub mod box_lattice;
 pub mod cell_volume;
 pub mod obj;
+pub mod ray_columns;
+pub mod resample;
 pub mod sampling;
+pub mod shapes;
+pub mod triangle_bins;
 
 use crate::error::SceneError;
-use crate::scene::Geometry;
+use crate::scene::{Geometry, SurfaceNodes};
+
+/// The largest lattice a surface may be sampled on (the box limit of 50 million nodes).
+pub const MAX_LATTICE_POINTS: f64 = 5.0e7;
+
+/// Rough bytes per node of a simulation (state, 18 neighbours, model arrays), for the
+/// size estimate in errors.
+const BYTES_PER_NODE: f64 = 400.0;
 
 /// Rest positions of the nodes and the surface triangles over them.
 #[derive(Debug, Clone, PartialEq)]
@@ -81,7 +93,28 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
                 Geometry::Stl(_) => obj::load_closed_stl(&full, g.scale)?,
                 _ => obj::load_closed_surface(&full, g.scale)?,
             };
-            Ok(sampling::fill_lattice(&surface, g.spacing))
+            let (lo, hi) = bounds(&surface.vertices);
+            let points = sampling::Lattice::count(lo, hi, g.spacing, 2);
+            if points > MAX_LATTICE_POINTS {
+                let size: Vec<String> = (0..3).map(|a| format!("{:.3e}", hi[a] - lo[a])).collect();
+                return Err(SceneError::invalid(
+                    "tissue.geometry.spacing",
+                    format!(
+                        "the surface measures [{}] m after `scale` = {}; at spacing {} m that \
+                         is a lattice of {points:.3e} points (about {:.1} GiB), more than the \
+                         {MAX_LATTICE_POINTS:.0e} supported: check `scale` (0.001 for a file \
+                         in millimetres) and `spacing`",
+                        size.join(", "),
+                        g.scale,
+                        g.spacing,
+                        points * BYTES_PER_NODE / (1u64 << 30) as f64,
+                    ),
+                ));
+            }
+            match g.surface {
+                SurfaceNodes::Resample => Ok(resample::resample(&surface, g.spacing, &full)?),
+                SurfaceNodes::Vertices => Ok(sampling::fill_lattice(&surface, g.spacing)),
+            }
         }
     }
 }

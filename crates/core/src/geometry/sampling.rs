@@ -1,56 +1,80 @@
-//! Interior sampling of a closed surface.
+//! Interior sampling of a closed surface, keeping the surface's own vertices as nodes
+//! (`surface = "vertices"`; the default resamples them, [`super::resample`]).
 //!
 //! The surface vertices become nodes; the inside is filled with a cubic lattice of spacing
-//! `h` (centred on the surface's bounding box). A lattice point is kept when its
-//! generalised winding number (sum of the triangles' solid angles over 4 pi, van Oosterom
-//! and Strackee 1983) exceeds 1/2 and it lies at least `h / 2` from the surface, so no
-//! interior node crowds a surface vertex. Cost: lattice points times triangles; fine for
-//! the meshes of a needle-insertion scene (a few thousand triangles). Node cell volumes
-//! come from [`super::cell_volume`], which reuses the lattice's inside/distance values.
+//! `h` (centred on the surface's bounding box). A lattice point is kept when it lies
+//! inside ([`super::ray_columns`]) and at least `h / 2` from the surface, so no interior
+//! node crowds a surface vertex. Node cell volumes come from [`super::cell_volume`].
 
 use super::obj::Surface;
+use super::ray_columns::ColumnCrossings;
+use super::triangle_bins::TriangleBins;
 use super::NodeCloud;
+
+/// A cubic lattice of spacing `h` over a point set's bounds, centred on them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lattice {
+    /// Position of lattice point (0, 0, 0).
+    pub origin: [f64; 3],
+    /// Points along each axis.
+    pub dims: [usize; 3],
+    /// Spacing in metres.
+    pub spacing: f64,
+}
+
+impl Lattice {
+    /// The lattice of spacing `h` whose points cover the bounds of `points` (centred on
+    /// them), plus `margin` more points on every side.
+    pub fn covering(points: &[[f64; 3]], h: f64, margin: usize) -> Lattice {
+        let (lo, hi) = super::bounds(points);
+        let inner: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / h).floor() as usize + 1);
+        Lattice {
+            origin: std::array::from_fn(|a| {
+                lo[a] + 0.5 * ((hi[a] - lo[a]) - (inner[a] - 1) as f64 * h) - margin as f64 * h
+            }),
+            dims: inner.map(|n| n + 2 * margin),
+            spacing: h,
+        }
+    }
+
+    /// Lattice points a surface with these bounds would need at spacing `h` (before
+    /// building it, to reject absurd sizes).
+    pub fn count(lo: [f64; 3], hi: [f64; 3], h: f64, margin: usize) -> f64 {
+        (0..3)
+            .map(|a| ((hi[a] - lo[a]) / h).floor() + 1.0 + 2.0 * margin as f64)
+            .product()
+    }
+
+    /// Position of point `(i, j, k)`.
+    pub fn point(&self, p: [usize; 3]) -> [f64; 3] {
+        std::array::from_fn(|a| self.origin[a] + p[a] as f64 * self.spacing)
+    }
+}
 
 /// Surface vertices plus the interior lattice points.
 pub fn fill_lattice(surface: &Surface, h: f64) -> NodeCloud {
-    let (lo, hi) = super::bounds(&surface.vertices);
-    let mut positions = surface.vertices.clone();
-    let dims: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / h).floor() as usize + 1);
-    let origin: [f64; 3] =
-        std::array::from_fn(|a| lo[a] + 0.5 * ((hi[a] - lo[a]) - (dims[a] - 1) as f64 * h));
+    let lattice = Lattice::covering(&surface.vertices, h, 0);
     let tris: Vec<[[f64; 3]; 3]> = surface
         .triangles
         .iter()
         .map(|t| t.map(|i| surface.vertices[i as usize]))
         .collect();
-    let mut inside = Vec::with_capacity(dims.iter().product());
-    let mut distance = Vec::with_capacity(dims.iter().product());
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = [
-                    origin[0] + i as f64 * h,
-                    origin[1] + j as f64 * h,
-                    origin[2] + k as f64 * h,
-                ];
-                let is_inside = winding_number(p, &tris) > 0.5;
-                let d = distance_to_triangles(p, &tris);
-                if is_inside && d >= 0.5 * h {
+    let inside = ColumnCrossings::inside_grid(&tris, lattice.origin, h, lattice.dims);
+    let bins = TriangleBins::new(tris, h);
+    let mut positions = surface.vertices.clone();
+    let [nx, ny, nz] = lattice.dims;
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = lattice.point([i, j, k]);
+                if inside[i + nx * (j + ny * k)] && bins.distance_capped(p, 0.5 * h) >= 0.5 * h {
                     positions.push(p);
                 }
-                inside.push(is_inside);
-                distance.push(d);
             }
         }
     }
-    let lattice = super::cell_volume::Lattice {
-        origin,
-        dims,
-        spacing: h,
-        inside,
-        distance,
-    };
-    let node_volumes = super::cell_volume::estimate(&positions, &tris, &lattice, surface.volume);
+    let node_volumes =
+        super::cell_volume::estimate(&positions, bins.triangles(), &lattice, surface.volume);
     NodeCloud {
         positions,
         triangles: surface.triangles.clone(),

@@ -1,0 +1,218 @@
+//! Triangles binned in cubes, for closest-point and distance queries near a surface.
+//!
+//! Each triangle is listed in every cube its bounding box overlaps. A query searches
+//! shells of cubes around the point's cube outwards and stops once no unsearched cube can
+//! hold a closer triangle, so a point near the surface costs the few triangles around it.
+
+use super::sampling::closest_point_on_triangle;
+
+/// Triangles binned in cubes of side `cell`.
+#[derive(Debug, Clone)]
+pub struct TriangleBins {
+    triangles: Vec<[[f64; 3]; 3]>,
+    lo: [f64; 3],
+    cell: f64,
+    dims: [i64; 3],
+    bins: Vec<Vec<u32>>,
+}
+
+impl TriangleBins {
+    /// Bins `triangles` (corner coordinates) in cubes of side `cell` over their bounds.
+    pub fn new(triangles: Vec<[[f64; 3]; 3]>, cell: f64) -> TriangleBins {
+        let corners: Vec<[f64; 3]> = triangles.iter().flatten().copied().collect();
+        let (lo, hi) = super::bounds(&corners);
+        let dims: [i64; 3] =
+            std::array::from_fn(|a| ((hi[a] - lo[a]) / cell).floor().max(0.0) as i64 + 1);
+        let mut bins = vec![Vec::new(); (dims[0] * dims[1] * dims[2]) as usize];
+        let mut out = TriangleBins {
+            triangles,
+            lo,
+            cell,
+            dims,
+            bins: Vec::new(),
+        };
+        for (n, t) in out.triangles.iter().enumerate() {
+            let (tlo, thi) = super::bounds(t);
+            let a = out.cell_of(tlo);
+            let b = out.cell_of(thi);
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        bins[out.flat([x, y, z])].push(n as u32);
+                    }
+                }
+            }
+        }
+        out.bins = bins;
+        out
+    }
+
+    /// The binned triangles.
+    pub fn triangles(&self) -> &[[[f64; 3]; 3]] {
+        &self.triangles
+    }
+
+    fn cell_of(&self, p: [f64; 3]) -> [i64; 3] {
+        std::array::from_fn(|a| ((p[a] - self.lo[a]) / self.cell).floor() as i64)
+    }
+
+    fn flat(&self, c: [i64; 3]) -> usize {
+        (c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])) as usize
+    }
+
+    /// The closest surface point to `p` and its distance, if one lies within `max_distance`
+    /// (pass infinity for any).
+    pub fn closest(&self, p: [f64; 3], max_distance: f64) -> Option<([f64; 3], f64)> {
+        let c = self.cell_of(p);
+        // Chebyshev distance in cubes from c to the grid.
+        let outside = (0..3)
+            .map(|a| (-c[a]).max(c[a] - (self.dims[a] - 1)).max(0))
+            .max()
+            .unwrap_or(0);
+        let far = outside + self.dims.iter().max().copied().unwrap_or(0);
+        let mut best: Option<([f64; 3], f64)> = None;
+        for r in outside..=far {
+            // Every cube of shell r is at least (r - 1) cubes away from p.
+            let gap = (r - 1).max(0) as f64 * self.cell;
+            let bound = best.map_or(max_distance, |b| b.1.min(max_distance));
+            if gap > bound {
+                break;
+            }
+            for z in c[2] - r..=c[2] + r {
+                for y in c[1] - r..=c[1] + r {
+                    for x in c[0] - r..=c[0] + r {
+                        let q = [x, y, z];
+                        if (0..3).all(|a| (q[a] - c[a]).abs() != r)
+                            || (0..3).any(|a| q[a] < 0 || q[a] >= self.dims[a])
+                        {
+                            continue;
+                        }
+                        for &t in &self.bins[self.flat(q)] {
+                            let x = closest_point_on_triangle(p, &self.triangles[t as usize]);
+                            let d = dist(x, p);
+                            if best.map_or(true, |b| d < b.1) {
+                                best = Some((x, d));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best.filter(|b| b.1 <= max_distance)
+    }
+
+    /// Distance from `p` to the surface, or `cap` if it is farther than `cap`.
+    pub fn distance_capped(&self, p: [f64; 3], cap: f64) -> f64 {
+        self.closest(p, cap).map_or(cap, |b| b.1)
+    }
+
+    /// Where the segment `a -> b` first crosses a triangle, as the fraction of the way
+    /// from `a` (the segment should be no longer than a cube).
+    pub fn first_crossing(&self, a: [f64; 3], b: [f64; 3]) -> Option<f64> {
+        let ca = self.cell_of(a);
+        let cb = self.cell_of(b);
+        let mut best: Option<f64> = None;
+        let mut seen = std::collections::HashSet::new();
+        for z in ca[2].min(cb[2])..=ca[2].max(cb[2]) {
+            for y in ca[1].min(cb[1])..=ca[1].max(cb[1]) {
+                for x in ca[0].min(cb[0])..=ca[0].max(cb[0]) {
+                    let q = [x, y, z];
+                    if (0..3).any(|a| q[a] < 0 || q[a] >= self.dims[a]) {
+                        continue;
+                    }
+                    for &t in &self.bins[self.flat(q)] {
+                        if !seen.insert(t) {
+                            continue;
+                        }
+                        if let Some(s) = segment_triangle(a, b, &self.triangles[t as usize]) {
+                            if best.map_or(true, |b| s < b) {
+                                best = Some(s);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Fraction `s` in [0, 1] at which `a + s (b - a)` meets triangle `t`, if it does
+/// (Moeller and Trumbore 1997).
+fn segment_triangle(a: [f64; 3], b: [f64; 3], t: &[[f64; 3]; 3]) -> Option<f64> {
+    let d = sub(b, a);
+    let e1 = sub(t[1], t[0]);
+    let e2 = sub(t[2], t[0]);
+    let p = cross(d, e2);
+    let det = dot(e1, p);
+    if det == 0.0 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s0 = sub(a, t[0]);
+    let u = dot(s0, p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = cross(s0, e1);
+    let v = dot(d, q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let s = dot(e2, q) * inv;
+    (0.0..=1.0).contains(&s).then_some(s)
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    dot(sub(a, b), sub(a, b)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::box_lattice::BoxLattice;
+
+    /// Binned queries agree with the brute-force distance over all triangles, near and far.
+    #[test]
+    fn binned_distance_matches_brute_force() {
+        let c = BoxLattice::with_spacing([0.0; 3], [0.04, 0.03, 0.05], 0.01).cloud();
+        let tris: Vec<_> = c
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| c.positions[i as usize]))
+            .collect();
+        let bins = TriangleBins::new(tris.clone(), 0.007);
+        let mut x = 0.123_f64;
+        for _ in 0..300 {
+            let mut r = || {
+                x = (x * 97.31 + 0.371).fract();
+                x * 0.1 - 0.03
+            };
+            let p = [r(), r(), r()];
+            let want = super::super::sampling::distance_to_triangles(p, &tris);
+            let got = bins.closest(p, f64::INFINITY).unwrap().1;
+            assert!((got - want).abs() < 1e-15, "{p:?}: {got} vs {want}");
+            assert_eq!(bins.distance_capped(p, 0.004), want.min(0.004));
+        }
+        let s = bins
+            .first_crossing([0.02, 0.015, -0.01], [0.02, 0.015, 0.01])
+            .unwrap();
+        assert!((s - 0.5).abs() < 1e-12);
+        assert!(bins
+            .first_crossing([0.02, 0.015, 0.01], [0.02, 0.015, 0.02])
+            .is_none());
+    }
+}
