@@ -15,38 +15,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         obj::load_closed_surface(path, scale)?
     };
-    if std::env::var("DBG3").is_ok() {
-        let tris: Vec<[[f64; 3]; 3]> = surface
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| surface.vertices[i as usize]))
-            .collect();
-        let c = needlesim_core::geometry::ray_columns::ColumnCrossings::build(
-            &tris,
-            [0.0, 0.01],
-            h,
-            1,
-            1,
-        );
-        println!("{c:?}");
-        println!("{:?}", c.inside_column(0, 0, -0.06, h, 13));
-        let l = needlesim_core::geometry::sampling::Lattice::covering(&surface.vertices, h, 2);
-        let ins = needlesim_core::geometry::ray_columns::ColumnCrossings::inside_grid(
-            &tris, l.origin, h, l.dims,
-        );
-        let [nx, ny, nz] = l.dims;
-        for k in 0..nz {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let p = l.point([i, j, k]);
-                    let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-                    if (r < 0.045) != ins[i + nx * (j + ny * k)] && (r < 0.045 || r > 0.0505) {
-                        println!("wrong {p:?} r {r}");
-                    }
-                }
-            }
-        }
-    }
     let t0 = std::time::Instant::now();
     let c = resample::resample(&surface, h, path)?;
     let took = t0.elapsed();
@@ -64,9 +32,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|a| (c.positions[i][a] - c.positions[j][a]).powi(2))
                 .sum::<f64>()
                 .sqrt();
-            if d < 1e-3 * h && std::env::var("DBG2").is_ok() {
-                println!("close {i} {j}: {:?} {:?}", c.positions[i], c.positions[j]);
-            }
             min_d = min_d.min(d);
         }
     }
@@ -85,20 +50,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let l2 = e(a, b) + e(b, d) + e(d, a);
         // 1 for equilateral
         worst = worst.min(4.0 * 3f64.sqrt() * area / l2);
-    }
-    if std::env::var("DBG").is_ok() {
-        let r: Vec<f64> = c.positions[..n_surf]
-            .iter()
-            .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
-            .collect();
-        let mut sorted = r.clone();
-        sorted.sort_by(f64::total_cmp);
-        println!(
-            "radius min {:.5} median {:.5} max {:.5}",
-            sorted[0],
-            sorted[sorted.len() / 2],
-            sorted[sorted.len() - 1]
-        );
     }
     let vmin = c.node_volumes.iter().cloned().fold(f64::INFINITY, f64::min);
     println!(

@@ -38,6 +38,65 @@ fn write_ascii_stl(path: &Path, s: &Surface) {
     std::fs::write(path, text).unwrap();
 }
 
+fn write_legacy_vtk(path: &Path, s: &Surface) {
+    let mut text = format!(
+        "# vtk DataFile Version 3.0\nball\nASCII\nDATASET POLYDATA\nPOINTS {} double\n",
+        s.vertices.len()
+    );
+    for v in &s.vertices {
+        writeln!(text, "{:.17e} {:.17e} {:.17e}", v[0], v[1], v[2]).unwrap();
+    }
+    writeln!(
+        text,
+        "POLYGONS {} {}",
+        s.triangles.len(),
+        4 * s.triangles.len()
+    )
+    .unwrap();
+    for t in &s.triangles {
+        writeln!(text, "3 {} {} {}", t[0], t[1], t[2]).unwrap();
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// An XML unstructured grid of the surface's triangles (`cell_type` 5), or of anything
+/// else with the same connectivity (10: tetrahedra, to test the error).
+fn write_vtu(path: &Path, s: &Surface, cell_type: u8) {
+    let join = |v: Vec<String>| v.join(" ");
+    let points = join(
+        s.vertices
+            .iter()
+            .flatten()
+            .map(|c| format!("{c:.17e}"))
+            .collect(),
+    );
+    let conn = join(
+        s.triangles
+            .iter()
+            .flatten()
+            .map(|c| c.to_string())
+            .collect(),
+    );
+    let offsets = join(
+        (1..=s.triangles.len())
+            .map(|k| (3 * k).to_string())
+            .collect(),
+    );
+    let types = join(vec![cell_type.to_string(); s.triangles.len()]);
+    let text = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n\
+         <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n\
+         <Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">{points}</DataArray></Points>\n\
+         <Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">{conn}</DataArray>\n\
+         <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">{offsets}</DataArray>\n\
+         <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">{types}</DataArray>\n</Cells>\n\
+         </Piece>\n</UnstructuredGrid>\n</VTKFile>\n",
+        s.vertices.len(),
+        s.triangles.len()
+    );
+    std::fs::write(path, text).unwrap();
+}
+
 fn scene(geometry: &str, masses: &str, dir: &Path) -> Scene {
     let text = format!(
         "[tissue]\ndensity = 1070.0\nmasses = \"{masses}\"\ngeometry = {geometry}\n[material]\n{DEB}\n"
@@ -54,12 +113,16 @@ fn total_mass_is_density_times_volume_for_every_geometry_kind() {
     let ball = shapes::icosphere([0.01, 0.02, 0.03], 0.04, 3);
     write_obj(&dir.path().join("ball.obj"), &ball);
     write_ascii_stl(&dir.path().join("ball.stl"), &ball);
+    write_legacy_vtk(&dir.path().join("ball.vtk"), &ball);
+    write_vtu(&dir.path().join("ball.vtu"), &ball, 5);
     let kinds = [
         "{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.03, 0.04], spacing = 0.01 }",
         "{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.03, 0.04], nodes = 300 }",
         "{ kind = \"obj\", path = \"ball.obj\", spacing = 0.012 }",
         "{ kind = \"obj\", path = \"ball.obj\", spacing = 0.012, surface = \"vertices\" }",
         "{ kind = \"stl\", path = \"ball.stl\", spacing = 0.012 }",
+        "{ kind = \"vtk\", path = \"ball.vtk\", spacing = 0.012 }",
+        "{ kind = \"vtk\", path = \"ball.vtu\", spacing = 0.012 }",
     ];
     for kind in kinds {
         for masses in ["cell", "uniform"] {
@@ -79,8 +142,22 @@ fn total_mass_is_density_times_volume_for_every_geometry_kind() {
                 );
             }
             if kind.contains("ball") {
-                // The file's volume, not the resampled surface's.
+                // The file's volume, not the resampled surface's (STL stores f32).
                 assert!((t.volume / ball.volume - 1.0).abs() < 1e-6, "{kind}");
+            }
+            if kind.contains("ball.vt") && masses == "cell" {
+                // VTK files give the same nodes as the OBJ of the same surface (tobj reads
+                // f32, vtkio f64: positions agree to f32 rounding, 1e-8 m here).
+                let obj = scene(kinds[2], masses, dir.path());
+                let o = Tissue::from_scene(&obj).unwrap();
+                assert_eq!(o.n_mesh, t.n_mesh, "{kind}");
+                for (a, b) in o.state.positions.iter().zip(&t.state.positions) {
+                    assert!(
+                        (0..3).all(|c| (a[c] - b[c]).abs() < 1e-8),
+                        "{kind}: {a:?} {b:?}"
+                    );
+                    assert!((a[3] / b[3] - 1.0).abs() < 1e-4, "{kind}: {a:?} {b:?}");
+                }
             }
         }
     }
@@ -161,4 +238,57 @@ fn the_stable_step_follows_the_spacing_on_a_sphere() {
     }
     let ratio = dts[0] / dts[1];
     assert!((1.5..=2.5).contains(&ratio), "critical steps {dts:?}");
+}
+
+/// VTK files that hold no closed surface are rejected with the reason: volume cells only,
+/// an open surface, a cell that uses a missing point, a file that is not VTK.
+#[test]
+fn bad_vtk_files_are_rejected_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ball = shapes::icosphere([0.0; 3], 0.04, 1);
+    write_vtu(&d.join("tets.vtu"), &ball, 10);
+    let mut open = ball.clone();
+    open.triangles.pop();
+    write_legacy_vtk(&d.join("open.vtk"), &open);
+    let mut missing = ball.clone();
+    missing.triangles[0][0] = 9999;
+    write_legacy_vtk(&d.join("missing.vtk"), &missing);
+    std::fs::write(d.join("garbage.vtk"), "not a vtk file\n").unwrap();
+    for (file, reason) in [
+        ("tets.vtu", "no surface cells"),
+        ("open.vtk", "open"),
+        ("missing.vtk", "point 9999"),
+        ("garbage.vtk", "cannot load"),
+        ("absent.vtp", "cannot load"),
+    ] {
+        let text = format!(
+            "[tissue]\ngeometry = {{ kind = \"vtk\", path = \"{file}\", spacing = 0.01 }}\n[material]\n{DEB}\n"
+        );
+        let err = Scene::from_toml_str(&text, d)
+            .and_then(|s| Tissue::from_scene(&s).map(|_| ()))
+            .expect_err(file);
+        let msg = err.to_string();
+        assert!(msg.contains(reason) && msg.contains(file), "{file}: {msg}");
+    }
+}
+
+/// A millimetre mesh read without `scale = 0.001` asks for a lattice a billion times too
+/// large: the size check names the key and suggests the scale, before allocating.
+#[test]
+fn a_unit_mistake_is_caught_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    write_obj(
+        &dir.path().join("mm.obj"),
+        &shapes::icosphere([0.0; 3], 50.0, 2),
+    );
+    let text = format!(
+        "[tissue]\ngeometry = {{ kind = \"obj\", path = \"mm.obj\", spacing = 0.005 }}\n[material]\n{DEB}\n"
+    );
+    let err = Tissue::from_scene(&Scene::from_toml_str(&text, dir.path()).unwrap()).unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.contains("tissue.geometry.spacing") && msg.contains("scale"),
+        "{msg}"
+    );
 }

@@ -16,7 +16,12 @@
 //!   converged quadratic-tetrahedron solution from scikit-fem (`scripts/fem_indentation.py`,
 //!   data in `reference/`). The issue asked for the needle tip pressed into the surface;
 //!   a point indenter has no converged continuum answer (its force goes to zero as the
-//!   mesh is refined), so the tip is replaced by a punch of finite size.
+//!   mesh is refined), so the tip is replaced by a punch of finite size;
+//! - sphere: a free 10 cm ball (a finely triangulated sphere resampled at the case's
+//!   spacing: no box lattice) under a uniform pressure `p` on its whole surface; Lame's
+//!   solution is a uniform strain `eps = -p (1 - 2 nu) / E` (`u = eps x`), fitted over
+//!   all nodes; the second error is the displacement field's RMS deviation from it over
+//!   `|eps| R`.
 //!
 //! Static cases relax with velocity damping `c = 2 omega_slow` (critical for the slowest
 //! mode) until the measured quantity changes by less than [`REL_TOL`] relative over each
@@ -59,6 +64,17 @@ pub const PUNCH_HALF_WIDTH: f64 = 0.025;
 /// close to the linear reference (its punch force differs from Debunne's, whose gradient
 /// and volumes it shares, by 0.4% at 15,625 nodes; by 1.25% at 0.5 mm and 5% at 2 mm).
 pub const PUNCH_DEPTH: f64 = 0.0001;
+/// Radius of the sphere case's ball, m.
+pub const SPHERE_RADIUS: f64 = 0.05;
+/// Hourglass control of the continuum models in the sphere case. Resampled surface nodes
+/// sit at irregular places among the lattice nodes, and their non-affine modes need more
+/// than the default 0.1: at 2,955 nodes DEB's strain was 15.6% too large with 0.1 and
+/// 1.6% with 4 (463 / 9,031 nodes: 50.6% / 10.7% with 0.1, 5.0% / 1.3% with 4; PBA
+/// the same within 0.2%). Uniform strain itself is not resisted by hourglass control.
+pub const SPHERE_HOURGLASS: f64 = 4.0;
+/// Pressure on the sphere case's ball, Pa: a strain of `-p (1 - 2 nu) / E = -0.1%`, where
+/// the geometrically nonlinear models stay within about 0.1% of the linear answer.
+pub const SPHERE_PRESSURE: f64 = 25.0;
 /// Neighbours per node in every case: 18 completes the first two shells of the cubic
 /// lattice (16 drops one face-diagonal pair at every node and makes the lattice models
 /// anisotropic).
@@ -174,15 +190,18 @@ pub enum CaseId {
     Stretch,
     /// Flat punch on a block: force and displacement field.
     Indentation,
+    /// A free ball under uniform pressure: its uniform strain.
+    Sphere,
 }
 
 impl CaseId {
     /// Every case.
-    pub const ALL: [CaseId; 4] = [
+    pub const ALL: [CaseId; 5] = [
         CaseId::Cantilever,
         CaseId::Frequency,
         CaseId::Stretch,
         CaseId::Indentation,
+        CaseId::Sphere,
     ];
 
     /// Short label.
@@ -192,6 +211,7 @@ impl CaseId {
             CaseId::Frequency => "frequency",
             CaseId::Stretch => "stretch",
             CaseId::Indentation => "indentation",
+            CaseId::Sphere => "sphere",
         }
     }
 
@@ -202,6 +222,7 @@ impl CaseId {
             CaseId::Frequency => "first bending period vs Euler-Bernoulli",
             CaseId::Stretch => "end-plate stress vs E eps (St Venant-Kirchhoff for PBA)",
             CaseId::Indentation => "punch force vs scikit-fem P2",
+            CaseId::Sphere => "strain of a ball under pressure vs Lame's solution",
         }
     }
 
@@ -219,6 +240,7 @@ impl CaseId {
         match self {
             CaseId::Stretch => REL_TOL,
             CaseId::Cantilever | CaseId::Frequency | CaseId::Indentation => 0.01,
+            CaseId::Sphere => REL_TOL,
         }
     }
 
@@ -236,11 +258,14 @@ impl CaseId {
 
     /// Lattice points per side for resolution level `level` (0 = coarsest): the beam's
     /// cross-section (`n^2 (10 (n - 1) + 1)` nodes) or the cube's side (`m^3` nodes; m - 1
-    /// a multiple of 4, so that the punch edges at 2.5 and 7.5 cm fall on lattice lines).
+    /// a multiple of 4, so that the punch edges at 2.5 and 7.5 cm fall on lattice lines);
+    /// for the sphere, spacings per radius (463, 2,955, 9,031 and 20,275 nodes at 4, 8,
+    /// 12 and 16).
     pub fn points_per_side(self, level: usize) -> usize {
         match self {
             CaseId::Cantilever | CaseId::Frequency => [3, 4, 5, 7, 9, 11][level.min(5)],
             CaseId::Stretch | CaseId::Indentation => [5, 9, 13, 17, 21, 25][level.min(5)],
+            CaseId::Sphere => [4, 8, 12, 16, 20, 24][level.min(5)],
         }
     }
 }
@@ -340,6 +365,7 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
         CaseId::Frequency => prepare_frequency,
         CaseId::Stretch => prepare_stretch,
         CaseId::Indentation => prepare_indentation,
+        CaseId::Sphere => |_, _, _| {},
     };
     let n = case.points_per_side(spec.level);
     let (max, h) = match case {
@@ -347,9 +373,15 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
             let h = BEAM_WIDTH / (n - 1) as f64;
             ([BEAM_LENGTH, BEAM_WIDTH, BEAM_WIDTH], h)
         }
+        CaseId::Sphere => ([CUBE; 3], SPHERE_RADIUS / n as f64),
         _ => ([CUBE; 3], CUBE / (n - 1) as f64),
     };
-    let material = model.material(YOUNG, h);
+    let mut material = model.material(YOUNG, h);
+    if case == CaseId::Sphere
+        && matches!(model, ModelId::Deb | ModelId::DebCorotated | ModelId::Pba)
+    {
+        material.push_str(&format!("\nhourglass = {SPHERE_HOURGLASS:e}\n"));
+    }
     let floor = model.damping_floor(YOUNG, h);
     let (gravity, damping, fixed) = match case {
         CaseId::Cantilever => (
@@ -368,9 +400,29 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
             (2.0 * cube_omega(true)).max(floor),
             format!("[[fixed]]\naxis = \"y\"\nbelow = {:e}\n", 0.25 * h),
         ),
+        CaseId::Sphere => (
+            0.0,
+            (2.0 * cube_omega(true)).max(floor),
+            format!(
+                "[[load]]\nsphere = {{ centre = [0.0, 0.0, 0.0], radius = 1.0 }}\npressure = {SPHERE_PRESSURE:e}\n"
+            ),
+        ),
     };
     let scene = scene(max, h, &material, gravity, damping, &fixed);
-    let mut tissue = Tissue::from_scene(&scene).map_err(RunError::from)?;
+    let mut tissue = match case {
+        // The scene's box only carries the spacing; the nodes come from the sphere.
+        CaseId::Sphere => {
+            let r = SPHERE_RADIUS;
+            let surface =
+                needlesim_core::geometry::shapes::capsule([0.0, -r, 0.0], 2.0 * r, r, 96, 48);
+            let cloud =
+                needlesim_core::geometry::resample::resample(&surface, h, Path::new("sphere"))
+                    .map_err(|e| RunError::from(needlesim_core::SceneError::from(e)))?;
+            Tissue::from_cloud(&scene, cloud, 0)
+        }
+        _ => Tissue::from_scene(&scene),
+    }
+    .map_err(RunError::from)?;
     let rest: Vec<[f64; 3]> = tissue.state.positions[..tissue.state.n_active]
         .iter()
         .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
@@ -438,11 +490,12 @@ fn cube_omega(fixed_bottom: bool) -> f64 {
     f * std::f64::consts::PI * cs / CUBE
 }
 
-/// A per-step constraint of a relaxation (the stretch case's rollers).
+/// One step of a relaxation with what the case adds to it (the stretch case's rollers,
+/// the sphere case's pressure).
 type Constraint<'a> = &'a mut dyn FnMut(&mut dyn Backend) -> Result<(), ReportError>;
 
-/// Runs the backend until `quantity` settles (module docs); `constrain` runs after every
-/// step when given. Returns (quantity, steps, wall, converged).
+/// Runs the backend until `quantity` settles (module docs); `constrain`, when given,
+/// runs each step in place of the plain one. Returns (quantity, steps, wall, converged).
 fn relax(
     b: &mut dyn Backend,
     dt: f64,
@@ -460,7 +513,6 @@ fn relax(
         match constrain.as_mut() {
             Some(c) => {
                 for _ in 0..chunk {
-                    b.step(1);
                     c(b)?;
                 }
             }
@@ -512,6 +564,7 @@ pub fn run_case(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<CaseResu
         CaseId::Frequency => frequency(model, spec),
         CaseId::Stretch => stretch(model, spec),
         CaseId::Indentation => indentation(model, spec),
+        CaseId::Sphere => sphere(model, spec),
     }
 }
 
@@ -705,6 +758,7 @@ fn stretch(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
     let mut pos = vec![[0.0f32; 4]; n];
     let mut vel = vec![[0.0f32; 4]; n];
     let mut rollers = |b: &mut dyn Backend| -> Result<(), ReportError> {
+        b.step(1);
         b.read(NodeField::Position, 0..n, &mut pos)?;
         b.read(NodeField::Velocity, 0..n, &mut vel)?;
         for &(i, z) in &plate {
@@ -800,4 +854,51 @@ fn indentation(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError
         reference.force,
         rms,
     ))
+}
+
+fn sphere(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
+    let s = setup(CaseId::Sphere, model, spec)?;
+    let (e, nu) = (YOUNG, POISSON);
+    let reference = -SPHERE_PRESSURE * (1.0 - 2.0 * nu) / e;
+    let n = s.rest.len();
+    let boundary = s.tissue.boundary.clone();
+    let mut b = backend_of(&s, spec)?;
+    let mut pressed = |b: &mut dyn Backend| -> Result<(), ReportError> {
+        b.compute_forces();
+        boundary.apply_loads(b, 0.0)?;
+        b.integrate();
+        Ok(())
+    };
+    // The least-squares uniform strain of `u = eps x` (the centroid is at the origin).
+    let strain = |b: &mut dyn Backend| -> Result<f64, ReportError> {
+        let p = read_all(b, NodeField::Position)?;
+        let (mut ux, mut xx) = (0.0, 0.0);
+        for (q, r) in p.iter().zip(&s.rest).take(n) {
+            for a in 0..3 {
+                ux += (q[a] as f64 - r[a]) * r[a];
+                xx += r[a] * r[a];
+            }
+        }
+        Ok(ux / xx)
+    };
+    let run = relax(
+        b.as_mut(),
+        s.dt,
+        cube_omega(true),
+        strain,
+        Some(&mut pressed),
+    )?;
+    let p = read_all(b.as_mut(), NodeField::Position)?;
+    let sum: f64 = p
+        .iter()
+        .zip(&s.rest)
+        .take(n)
+        .map(|(q, r)| {
+            (0..3)
+                .map(|a| (q[a] as f64 - r[a] - reference * r[a]).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    let rms = (sum / n as f64).sqrt() / (reference.abs() * SPHERE_RADIUS);
+    Ok(result(CaseId::Sphere, model, &s, spec, run, reference, rms))
 }

@@ -146,6 +146,9 @@ pub enum Geometry {
     /// `kind = "stl"`: a closed binary or ASCII STL surface, with the same keys and checks
     /// as `obj`.
     Stl(ObjGeometry),
+    /// `kind = "vtk"`: a closed surface in a VTK file (legacy `.vtk`, XML `.vtp` or `.vtu`,
+    /// told by the extension), with the same keys and checks as `obj`.
+    Vtk(ObjGeometry),
 }
 
 /// An axis-aligned box filled with a cubic lattice. Give either `spacing` or a target node
@@ -164,7 +167,8 @@ pub struct BoxGeometry {
     pub nodes: Option<usize>,
 }
 
-/// A closed triangulated surface (Wavefront OBJ, or STL with `kind = "stl"`). By default
+/// A closed triangulated surface (Wavefront OBJ; STL with `kind = "stl"`; VTK with
+/// `kind = "vtk"`). By default
 /// the surface is resampled to nodes about `spacing` apart and the inside is filled with a
 /// cubic lattice of that spacing, so the node count follows the spacing and the volume,
 /// not the file's triangle count.
@@ -1088,6 +1092,7 @@ fn de_geometry<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Geometry, D::Er
         "box" => Some(v.try_into().map(Geometry::Box)),
         "obj" => Some(v.try_into().map(Geometry::Obj)),
         "stl" => Some(v.try_into().map(Geometry::Stl)),
+        "vtk" => Some(v.try_into().map(Geometry::Vtk)),
         _ => None,
     })
 }
@@ -1209,7 +1214,8 @@ impl Scene {
                 }
             }
             Geometry::Obj(ObjGeometry { spacing, scale, .. })
-            | Geometry::Stl(ObjGeometry { spacing, scale, .. }) => {
+            | Geometry::Stl(ObjGeometry { spacing, scale, .. })
+            | Geometry::Vtk(ObjGeometry { spacing, scale, .. }) => {
                 // The lattice size is checked against the surface's bounds when the
                 // geometry is built.
                 positive_finite("tissue.geometry.spacing", *spacing)?;

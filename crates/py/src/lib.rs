@@ -115,6 +115,7 @@ fn backend_choice(name: Option<&str>) -> PyResult<Option<BackendChoice>> {
 struct PySimulation {
     sim: Mutex<Simulation>,
     warnings: Vec<String>,
+    masses: Vec<f64>,
 }
 
 impl PySimulation {
@@ -123,10 +124,12 @@ impl PySimulation {
         let prep = Simulation::prepare(scene).map_err(sim_error)?;
         let (b, warning) =
             make_backend(scene, prep.tissue.clone(), choice, threads).map_err(run_error)?;
+        let masses = prep.tissue.masses.clone();
         let sim = prep.start(b).map_err(sim_error)?;
         Ok(PySimulation {
             sim: Mutex::new(sim),
             warnings: warning.into_iter().collect(),
+            masses,
         })
     }
 
@@ -310,6 +313,25 @@ impl PySimulation {
         d.set_item("lateral", f.lateral)?;
         d.set_item("total", PyArray1::from_vec(py, f.total.to_vec()))?;
         Ok(d)
+    }
+
+    /// The force each held set (`[[fixed]]`, `[[prescribed]]`) exerts on the body, from the
+    /// forces of the last step: {name: array (3,) in N}, zero in the components a set does
+    /// not hold.
+    fn reactions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let r = self.lock().reactions().map_err(sim_error)?;
+        let d = PyDict::new(py);
+        for r in r {
+            d.set_item(r.name, PyArray1::from_vec(py, r.force.to_vec()))?;
+        }
+        Ok(d)
+    }
+
+    /// Mass of each mesh node in kg, shape (mesh_nodes,): density times its cell volume
+    /// (`tissue.masses = "cell"`) or equal shares (`"uniform"`).
+    #[getter]
+    fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_vec(py, self.masses.clone())
     }
 
     /// Every step's needle record as numpy arrays: step, time, depth (m past the first

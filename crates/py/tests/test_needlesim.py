@@ -160,3 +160,41 @@ def test_gpu_backend_matches_the_cpu():
     b.step(700)
     assert a.puncture_state == b.puncture_state
     assert np.abs(a.positions - b.positions).max() < 1e-5
+
+
+def test_boundary_conditions_from_a_dict_and_their_reactions():
+    # A cube on a roller floor, its top pushed 0.2 mm down by a frictionless plate: the
+    # plate's reaction approaches E * strain * area = 0.2 N (1% once settled; tests/boundary.rs
+    # checks the settled value), the floor's balances it, and the masses add up.
+    h = 0.025
+    scene = {
+        "tissue": {
+            "density": 1000.0,
+            "geometry": {"kind": "box", "min": [0, 0, 0], "max": [0.1, 0.1, 0.1], "spacing": h},
+        },
+        "material": {"model": "debunne_meshfree", "young_modulus": 1e4, "poisson_ratio": 0.3},
+        "physics": {"dt": "auto", "damping": 120.0},
+        "fixed": [{"name": "floor", "axis": "y", "below": 0.001, "components": ["y"]}],
+        "prescribed": [
+            {
+                "name": "plate",
+                "box": {"min": [-1, 0.099, -1], "max": [1, 1, 1]},
+                "components": ["y"],
+                "displacement": [0.0, -0.0002, 0.0],
+                "ramp": 0.1,
+            }
+        ],
+    }
+    sim = needlesim.Simulation.from_dict(scene, threads=1)
+    assert abs(sim.masses.sum() - 1000.0 * 0.1**3) < 1e-9
+    sim.step(int(0.8 / sim.dt))
+    r = sim.reactions()
+    assert set(r) == {"floor", "plate"}
+    assert abs(r["plate"][1] / -0.2 - 1.0) < 0.02, r
+    assert abs(r["floor"][1] / 0.2 - 1.0) < 0.02, r
+    assert r["plate"][0] == 0.0 and r["plate"][2] == 0.0
+    top = sim.rest_positions[:, 1] > 0.099
+    assert np.allclose(sim.positions[top, 1], 0.1 - 0.0002, atol=1e-7)
+    with pytest.raises(ValueError, match=r"prescribed\[0\]"):
+        bad = dict(scene, prescribed=[dict(scene["prescribed"][0], box={"min": [5, 5, 5], "max": [6, 6, 6]})])
+        needlesim.Simulation.from_dict(bad)

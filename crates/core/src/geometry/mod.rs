@@ -2,7 +2,7 @@
 //! that bounds them (used for output and, later, for needle contact).
 //!
 //! Two sources: a box filled with a cubic lattice ([`box_lattice`]) and a closed surface
-//! file (OBJ or STL, [`obj`]) resampled at the scene's spacing ([`resample`]) or keeping
+//! file (OBJ, STL or VTK, [`obj`]) resampled at the scene's spacing ([`resample`]) or keeping
 //! its own vertices ([`sampling`]), its inside filled with a cubic lattice.
 
 pub mod box_lattice;
@@ -83,7 +83,7 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             };
             Ok(lattice.cloud())
         }
-        Geometry::Obj(g) | Geometry::Stl(g) => {
+        Geometry::Obj(g) | Geometry::Stl(g) | Geometry::Vtk(g) => {
             let full = if g.path.is_absolute() {
                 g.path.clone()
             } else {
@@ -91,6 +91,7 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             };
             let surface = match geometry {
                 Geometry::Stl(_) => obj::load_closed_stl(&full, g.scale)?,
+                Geometry::Vtk(_) => obj::load_closed_vtk(&full, g.scale)?,
                 _ => obj::load_closed_surface(&full, g.scale)?,
             };
             let (lo, hi) = bounds(&surface.vertices);

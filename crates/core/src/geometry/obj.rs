@@ -1,5 +1,6 @@
-//! Wavefront OBJ and STL (binary or ASCII, read with `stl_io`) import of a closed tissue
-//! surface.
+//! Wavefront OBJ, STL (binary or ASCII, read with `stl_io`) and VTK (legacy `.vtk`, XML
+//! `.vtp` poly data or `.vtu` unstructured grids of surface cells, read with `vtkio`)
+//! import of a closed tissue surface.
 //!
 //! Polygons are triangulated, all objects of the file are merged, vertices at bit-identical
 //! positions are welded (files that repeat a vertex per face become connected), and
@@ -41,7 +42,12 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         let mesh = &model.mesh;
         let offset = raw_vertices.len() as u32;
         for (i, p) in mesh.positions.chunks_exact(3).enumerate() {
-            let v = scaled_vertex(path, raw_vertices.len() + i, [p[0], p[1], p[2]], scale)?;
+            let v = scaled_vertex(
+                path,
+                raw_vertices.len() + i,
+                [p[0] as f64, p[1] as f64, p[2] as f64],
+                scale,
+            )?;
             raw_vertices.push(v);
         }
         for t in mesh.indices.chunks_exact(3) {
@@ -55,10 +61,10 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
 fn scaled_vertex(
     path: &Path,
     index: usize,
-    p: [f32; 3],
+    p: [f64; 3],
     scale: f64,
 ) -> Result<[f64; 3], GeometryError> {
-    let v = p.map(|c| c as f64 * scale);
+    let v = p.map(|c| c * scale);
     if v.iter().all(|c| c.is_finite()) {
         Ok(v)
     } else {
@@ -82,13 +88,126 @@ pub fn load_closed_stl(path: &Path, scale: f64) -> Result<Surface, SceneError> {
     let mesh = stl_io::read_stl(&mut file).map_err(|e| load(e.to_string()))?;
     let mut vertices = Vec::with_capacity(mesh.vertices.len());
     for (i, v) in mesh.vertices.iter().enumerate() {
-        vertices.push(scaled_vertex(path, i, [v[0], v[1], v[2]], scale)?);
+        vertices.push(scaled_vertex(
+            path,
+            i,
+            [v[0] as f64, v[1] as f64, v[2] as f64],
+            scale,
+        )?);
     }
     let triangles: Vec<[u32; 3]> = mesh
         .faces
         .iter()
         .map(|f| f.vertices.map(|i| i as u32))
         .collect();
+    from_triangles(path, &vertices, &triangles).map_err(Into::into)
+}
+
+/// Loads a VTK surface (legacy `.vtk`, or XML `.vtp` / `.vtu`; the extension says which),
+/// scales it and checks that it bounds a volume. Poly data contributes its polygons and
+/// triangle strips; an unstructured grid its triangles, quads and polygons (volume cells
+/// are not a surface). Polygons are split into fans.
+pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
+    use vtkio::model::{CellType, DataSet};
+    let load = |message: String| GeometryError::ObjLoad {
+        path: path.to_path_buf(),
+        message,
+    };
+    let vtk = vtkio::Vtk::import(path).map_err(|e| load(e.to_string()))?;
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    // Appends a piece's points and its cells (`(vertex lists, is a strip)`).
+    let mut add =
+        |points: vtkio::IOBuffer, cells: Vec<(Vec<u64>, bool)>| -> Result<(), GeometryError> {
+            let coords: Vec<f64> = points
+                .cast_into::<f64>()
+                .ok_or_else(|| load("points are not numbers".into()))?;
+            let offset = vertices.len();
+            let count = coords.len() / 3;
+            for (i, p) in coords.chunks_exact(3).enumerate() {
+                vertices.push(scaled_vertex(path, offset + i, [p[0], p[1], p[2]], scale)?);
+            }
+            for (cell, strip) in cells {
+                if let Some(&bad) = cell.iter().find(|&&v| v as usize >= count) {
+                    return Err(load(format!(
+                        "a cell uses point {bad}, but the piece has {count} points"
+                    )));
+                }
+                let c: Vec<u32> = cell.iter().map(|&v| (v as usize + offset) as u32).collect();
+                for k in 2..c.len() {
+                    triangles.push(match (strip, k % 2) {
+                        (true, 0) => [c[k - 2], c[k - 1], c[k]],
+                        (true, _) => [c[k - 1], c[k - 2], c[k]],
+                        (false, _) => [c[0], c[k - 1], c[k]],
+                    });
+                }
+            }
+            Ok(())
+        };
+    let split = |v: vtkio::model::VertexNumbers| -> Vec<Vec<u64>> {
+        let (connectivity, offsets) = v.into_xml();
+        let mut start = 0usize;
+        offsets
+            .iter()
+            .map(|&end| {
+                let end = (end as usize).min(connectivity.len());
+                let cell = connectivity[start.min(end)..end].to_vec();
+                start = end;
+                cell
+            })
+            .collect()
+    };
+    match vtk.data {
+        DataSet::PolyData { pieces, .. } => {
+            for piece in pieces {
+                let p = piece
+                    .into_loaded_piece_data(Some(path))
+                    .map_err(|e| load(e.to_string()))?;
+                let mut cells: Vec<(Vec<u64>, bool)> = Vec::new();
+                if let Some(polys) = p.polys {
+                    cells.extend(split(polys).into_iter().map(|c| (c, false)));
+                }
+                if let Some(strips) = p.strips {
+                    cells.extend(split(strips).into_iter().map(|c| (c, true)));
+                }
+                add(p.points, cells)?;
+            }
+        }
+        DataSet::UnstructuredGrid { pieces, .. } => {
+            for piece in pieces {
+                let p = piece
+                    .into_loaded_piece_data(Some(path))
+                    .map_err(|e| load(e.to_string()))?;
+                let types = p.cells.types.clone();
+                let cells = split(p.cells.cell_verts)
+                    .into_iter()
+                    .zip(types)
+                    .filter_map(|(c, t)| match t {
+                        CellType::Triangle | CellType::Quad | CellType::Polygon => Some((c, false)),
+                        CellType::TriangleStrip => Some((c, true)),
+                        _ => None,
+                    })
+                    .collect();
+                add(p.points, cells)?;
+            }
+        }
+        _ => {
+            return Err(load(
+                "holds no surface: give poly data or an unstructured grid of triangles, quads \
+                 or polygons"
+                    .into(),
+            )
+            .into())
+        }
+    }
+    if triangles.is_empty() {
+        return Err(load(
+            "holds no surface cells (triangles, quads, polygons or strips); a volume mesh must \
+             be given as its boundary surface"
+                .into(),
+        )
+        .into());
+    }
     from_triangles(path, &vertices, &triangles).map_err(Into::into)
 }
 

@@ -27,7 +27,10 @@ impl Lattice {
     /// them), plus `margin` more points on every side.
     pub fn covering(points: &[[f64; 3]], h: f64, margin: usize) -> Lattice {
         let (lo, hi) = super::bounds(points);
-        let inner: [usize; 3] = std::array::from_fn(|a| ((hi[a] - lo[a]) / h).floor() as usize + 1);
+        // A tolerance of 1e-9 spacings keeps an extent of exactly n spacings at n + 1
+        // points (a lattice plane on both bounds), as for boxes.
+        let inner: [usize; 3] =
+            std::array::from_fn(|a| ((hi[a] - lo[a]) / h + 1e-9).floor() as usize + 1);
         Lattice {
             origin: std::array::from_fn(|a| {
                 lo[a] + 0.5 * ((hi[a] - lo[a]) - (inner[a] - 1) as f64 * h) - margin as f64 * h
@@ -41,7 +44,7 @@ impl Lattice {
     /// building it, to reject absurd sizes).
     pub fn count(lo: [f64; 3], hi: [f64; 3], h: f64, margin: usize) -> f64 {
         (0..3)
-            .map(|a| ((hi[a] - lo[a]) / h).floor() + 1.0 + 2.0 * margin as f64)
+            .map(|a| ((hi[a] - lo[a]) / h + 1e-9).floor() + 1.0 + 2.0 * margin as f64)
             .product()
     }
 

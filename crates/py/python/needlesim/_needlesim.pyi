@@ -63,6 +63,12 @@ class Simulation:
     @property
     def puncture_state(self) -> PunctureState: ...
     @property
+    def masses(self) -> npt.NDArray[np.float64]:
+        """(mesh_nodes,) node masses in kg (density times cell volume by default)."""
+    def reactions(self) -> Dict[str, npt.NDArray[np.float64]]:
+        """{set name: (3,) force in N} that each [[fixed]] / [[prescribed]] set exerts on
+        the body, from the last step's forces."""
+    @property
     def needle_force(self) -> Dict[str, Any]:
         """{"axial": float, "lateral": float, "total": (3,) array} in N of the last step."""
     def history(self) -> Dict[str, Any]:
