@@ -90,7 +90,7 @@ impl TriangleBins {
                         for &t in &self.bins[self.flat(q)] {
                             let x = closest_point_on_triangle(p, &self.triangles[t as usize]);
                             let d = dist(x, p);
-                            if best.map_or(true, |b| d < b.1) {
+                            if best.is_none_or(|b| d < b.1) {
                                 best = Some((x, d));
                             }
                         }
@@ -125,7 +125,7 @@ impl TriangleBins {
                             continue;
                         }
                         if let Some(s) = segment_triangle(a, b, &self.triangles[t as usize]) {
-                            if best.map_or(true, |b| s < b) {
+                            if best.is_none_or(|b| s < b) {
                                 best = Some(s);
                             }
                         }
