@@ -156,11 +156,7 @@ mod tests {
     fn lattice_nodes_in_a_box_get_the_trapezoid_cells() {
         let l = BoxLattice::with_spacing([0.0; 3], [0.04, 0.03, 0.05], 0.01);
         let c = l.cloud();
-        let tris: Vec<[[f64; 3]; 3]> = c
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| c.positions[i as usize]))
-            .collect();
+        let tris = c.triangle_corners();
         let lattice = Lattice {
             origin: [0.0; 3],
             dims: l.dims,

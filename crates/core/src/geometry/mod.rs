@@ -47,6 +47,14 @@ impl NodeCloud {
     pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
         bounds(&self.positions)
     }
+
+    /// The surface triangles as corner coordinates.
+    pub fn triangle_corners(&self) -> Vec<[[f64; 3]; 3]> {
+        self.triangles
+            .iter()
+            .map(|t| t.map(|i| self.positions[i as usize]))
+            .collect()
+    }
 }
 
 /// Axis-aligned bounds of a point set (`(+inf, -inf)` when empty).

@@ -167,11 +167,7 @@ mod tests {
     #[test]
     fn grid_aligned_with_the_mesh_classifies_every_point() {
         let c = BoxLattice::with_spacing([0.0; 3], [0.04, 0.03, 0.05], 0.01).cloud();
-        let tris: Vec<_> = c
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| c.positions[i as usize]))
-            .collect();
+        let tris = c.triangle_corners();
         // Columns every half spacing: through the top and bottom faces' vertices, edges
         // and diagonals, and along the side faces.
         let h = 0.005;

@@ -186,11 +186,7 @@ mod tests {
     #[test]
     fn winding_number_is_one_inside_zero_outside() {
         let c = BoxLattice::with_spacing([0.0; 3], [1.0; 3], 0.5).cloud();
-        let tris: Vec<_> = c
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| c.positions[i as usize]))
-            .collect();
+        let tris = c.triangle_corners();
         assert!((winding_number([0.3, 0.4, 0.6], &tris) - 1.0).abs() < 1e-9);
         assert!(winding_number([1.3, 0.4, 0.6], &tris).abs() < 1e-9);
         assert!((distance_to_triangles([0.5, 0.5, 0.9], &tris) - 0.1).abs() < 1e-12);

@@ -189,11 +189,7 @@ mod tests {
     #[test]
     fn binned_distance_matches_brute_force() {
         let c = BoxLattice::with_spacing([0.0; 3], [0.04, 0.03, 0.05], 0.01).cloud();
-        let tris: Vec<_> = c
-            .triangles
-            .iter()
-            .map(|t| t.map(|i| c.positions[i as usize]))
-            .collect();
+        let tris = c.triangle_corners();
         let bins = TriangleBins::new(tris.clone(), 0.007);
         let mut x = 0.123_f64;
         for _ in 0..300 {
