@@ -607,6 +607,21 @@ impl Simulation {
         Ok(())
     }
 
+    /// The second half of a step, once the forces are in: the surface loads, the
+    /// integration, the clock, the held sets' projection and the divergence guard.
+    fn load_integrate_project(&mut self) -> Result<(), SimulationError> {
+        self.boundary
+            .apply_loads(self.backend.as_mut(), self.time)?;
+        self.backend.integrate();
+        self.time += self.dt;
+        self.steps += 1;
+        self.boundary.project(self.backend.as_mut(), self.time)?;
+        if self.steps.is_multiple_of(self.check_every) {
+            self.check()?;
+        }
+        Ok(())
+    }
+
     /// Runs one step.
     pub fn step(&mut self) -> Result<(), SimulationError> {
         let (Some(prev), Some(_)) = (self.prev, self.needle) else {
@@ -614,16 +629,7 @@ impl Simulation {
                 return self.step_n(1);
             }
             self.backend.compute_forces();
-            self.boundary
-                .apply_loads(self.backend.as_mut(), self.time)?;
-            self.backend.integrate();
-            self.time += self.dt;
-            self.steps += 1;
-            self.boundary.project(self.backend.as_mut(), self.time)?;
-            if self.steps.is_multiple_of(self.check_every) {
-                self.check()?;
-            }
-            return Ok(());
+            return self.load_integrate_project();
         };
         if let Some(s) = &self.script {
             self.needle = Some(s.pose_at(self.time + self.dt));
@@ -636,15 +642,7 @@ impl Simulation {
         self.constrain(&prev, &now)?;
         self.backend.compute_forces();
         self.apply_friction(&prev, &now)?;
-        self.boundary
-            .apply_loads(self.backend.as_mut(), self.time)?;
-        self.backend.integrate();
-        self.time += self.dt;
-        self.steps += 1;
-        self.boundary.project(self.backend.as_mut(), self.time)?;
-        if self.steps.is_multiple_of(self.check_every) {
-            self.check()?;
-        }
+        self.load_integrate_project()?;
         if self.record {
             self.history.push(NeedleSample {
                 step: self.steps,

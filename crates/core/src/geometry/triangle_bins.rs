@@ -4,7 +4,7 @@
 //! shells of cubes around the point's cube outwards and stops once no unsearched cube can
 //! hold a closer triangle, so a point near the surface costs the few triangles around it.
 
-use super::sampling::closest_point_on_triangle;
+use super::sampling::{closest_point_on_triangle, cross, dot, len, sub};
 
 /// Triangles binned in cubes of side `cell`.
 #[derive(Debug, Clone)]
@@ -163,21 +163,8 @@ fn segment_triangle(a: [f64; 3], b: [f64; 3], t: &[[f64; 3]; 3]) -> Option<f64> 
     (0.0..=1.0).contains(&s).then_some(s)
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    dot(sub(a, b), sub(a, b)).sqrt()
+    len(sub(a, b))
 }
 
 #[cfg(test)]
