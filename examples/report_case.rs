@@ -1,6 +1,6 @@
 //! Runs one case of the accuracy report and prints the result:
 //! `cargo run --release --example report_case -- <case> <model> <level> [dt fraction]`,
-//! case one of cantilever, frequency, stretch, indentation; model one of msm, lshm-node,
+//! case one of cantilever, frequency, stretch, indentation, sphere, column; model one of msm, lshm-node,
 //! lshm-cluster, deb, deb-corotated, pba; level 0 (coarsest) to 5.
 //!
 //! `cargo run --release --example report_case -- extreme <n> <model> [cube side]` runs

@@ -181,6 +181,44 @@ fn ball_under_pressure_matches_lame_within_5_percent_at_3000_nodes() {
     }
 }
 
+/// A clamped curved body against an established FEM library: a standing cylinder
+/// (R 2.5 cm, H 10 cm, resampled from a triangulated surface) with its bottom face fixed,
+/// sagging under its weight, against scikit-fem's converged axisymmetric P2 solution
+/// (`reference/column_fem.md`, itself within 0.08% of a 3D P2 solution on a gmsh mesh).
+/// Every model runs at 575, 1,163 and 2,255 nodes (3, 4 and 5 spacings per radius).
+/// The continuum models' mean-sag error falls and is within 5% at 2,255 nodes (the
+/// issue's "about 3k"), and so is the field's RMS error over the top sag. Measured (dev
+/// machine): DEB 5.95%, 4.22%, 3.73% (field 4.4%, 3.0%, 2.5%), co-rotated DEB the same
+/// within 0.01%, PBA 6.20%, 4.45%, 3.97%; finer (report_case) DEB 2.9% at 3,551, 2.2% at
+/// 7,851, 1.7% at 15,323 nodes. The lattice-calibrated models are bounded at 2,255 nodes
+/// at about 1.5 times their measured error, not required to fall: msm 19.6%, 15.5%, 17.6%
+/// (8.9% at 15,323), lshm-cluster 16.3%, 7.8%, 5.1%, lshm-node 23.2%, 10.5%, 6.8%.
+#[test]
+fn clamped_cylinder_sag_matches_scikit_fem() {
+    for model in ModelId::ALL {
+        let r = three_levels(CaseId::Column, model);
+        let sag: Vec<f64> = r.iter().map(|r| r.error).collect();
+        let field: Vec<f64> = r.iter().map(|r| r.secondary).collect();
+        let nodes: Vec<usize> = r.iter().map(|r| r.nodes).collect();
+        let msg = format!(
+            "{}: nodes {nodes:?}, sag errors {sag:.4?}, field errors {field:.4?}",
+            model.label()
+        );
+        eprintln!("{msg}");
+        assert!((2000..3500).contains(&nodes[2]), "{msg}");
+        match model {
+            ModelId::Deb | ModelId::DebCorotated | ModelId::Pba => {
+                assert!(CaseId::Column.error_falls(&sag), "{msg}");
+                assert!(CaseId::Column.error_falls(&field), "{msg}");
+                assert!(sag[2] < 0.05 && field[2] < 0.05, "{msg}");
+            }
+            ModelId::Msm => assert!(sag[2] < 0.27, "{msg}"),
+            ModelId::LshmCluster => assert!(sag[2] < 0.08, "{msg}"),
+            ModelId::LshmNode => assert!(sag[2] < 0.10, "{msg}"),
+        }
+    }
+}
+
 /// The convergence rule of the report: falling, or within the reference's accuracy.
 #[test]
 fn error_falls_rule() {

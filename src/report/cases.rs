@@ -21,7 +21,14 @@
 //!   spacing: no box lattice) under a uniform pressure `p` on its whole surface; Lame's
 //!   solution is a uniform strain `eps = -p (1 - 2 nu) / E` (`u = eps x`), fitted over
 //!   all nodes; the second error is the displacement field's RMS deviation from it over
-//!   `|eps| R`.
+//!   `|eps| R`;
+//! - column: a standing solid cylinder (R 2.5 cm, H 10 cm, a finely triangulated cylinder
+//!   resampled at the case's spacing) with its bottom face fixed, sagging under its own
+//!   weight; the volume-mean sag `-(1/V) int u_y dV` (mass-weighted over the nodes)
+//!   against a converged axisymmetric quadratic-triangle solution from scikit-fem
+//!   (`scripts/fem_column.py`, checked there against a 3D quadratic-tetrahedron solution
+//!   on a gmsh mesh; data in `reference/`); the second error is the displacement field's
+//!   RMS deviation from it over the top centre's sag.
 //!
 //! Static cases relax with velocity damping `c = 2 omega_slow` (critical for the slowest
 //! mode) until the measured quantity changes by less than [`REL_TOL`] relative over each
@@ -66,12 +73,19 @@ pub const PUNCH_HALF_WIDTH: f64 = 0.025;
 pub const PUNCH_DEPTH: f64 = 0.0001;
 /// Radius of the sphere case's ball, m.
 pub const SPHERE_RADIUS: f64 = 0.05;
-/// Hourglass control of the continuum models in the sphere case. Resampled surface nodes
+/// Radius of the column case's cylinder, m.
+pub const COLUMN_RADIUS: f64 = 0.025;
+/// Height of the column case's cylinder, m.
+pub const COLUMN_HEIGHT: f64 = 0.1;
+/// Gravity of the column case, m/s^2: a uniaxial bar's top would sink `rho g H^2 / (2E)`
+/// = 0.1 mm, a strain of at most 0.2% at the clamp (linear theory holds).
+pub const COLUMN_GRAVITY: f64 = 0.2;
+/// Hourglass control of the continuum models in the sphere and column cases. Resampled surface nodes
 /// sit at irregular places among the lattice nodes, and their non-affine modes need more
 /// than the default 0.1: at 2,955 nodes DEB's strain was 15.6% too large with 0.1 and
 /// 1.6% with 4 (463 / 9,031 nodes: 50.6% / 10.7% with 0.1, 5.0% / 1.3% with 4; PBA
 /// the same within 0.2%). Uniform strain itself is not resisted by hourglass control.
-pub const SPHERE_HOURGLASS: f64 = 4.0;
+pub const RESAMPLED_HOURGLASS: f64 = 4.0;
 /// Pressure on the sphere case's ball, Pa: a strain of `-p (1 - 2 nu) / E = -0.1%`, where
 /// the geometrically nonlinear models stay within about 0.1% of the linear answer.
 pub const SPHERE_PRESSURE: f64 = 25.0;
@@ -192,16 +206,19 @@ pub enum CaseId {
     Indentation,
     /// A free ball under uniform pressure: its uniform strain.
     Sphere,
+    /// A standing cylinder with a fixed base sagging under its weight: its mean sag.
+    Column,
 }
 
 impl CaseId {
     /// Every case.
-    pub const ALL: [CaseId; 5] = [
+    pub const ALL: [CaseId; 6] = [
         CaseId::Cantilever,
         CaseId::Frequency,
         CaseId::Stretch,
         CaseId::Indentation,
         CaseId::Sphere,
+        CaseId::Column,
     ];
 
     /// Short label.
@@ -212,6 +229,7 @@ impl CaseId {
             CaseId::Stretch => "stretch",
             CaseId::Indentation => "indentation",
             CaseId::Sphere => "sphere",
+            CaseId::Column => "column",
         }
     }
 
@@ -223,6 +241,7 @@ impl CaseId {
             CaseId::Stretch => "end-plate stress vs E eps (St Venant-Kirchhoff for PBA)",
             CaseId::Indentation => "punch force vs scikit-fem P2",
             CaseId::Sphere => "strain of a ball under pressure vs Lame's solution",
+            CaseId::Column => "mean sag of a clamped cylinder vs scikit-fem P2 (axisymmetric)",
         }
     }
 
@@ -241,6 +260,8 @@ impl CaseId {
             CaseId::Stretch => REL_TOL,
             CaseId::Cantilever | CaseId::Frequency | CaseId::Indentation => 0.01,
             CaseId::Sphere => REL_TOL,
+            // The FEM extrapolation is within 1e-4 (`reference/column_fem.md`).
+            CaseId::Column => REL_TOL,
         }
     }
 
@@ -260,12 +281,13 @@ impl CaseId {
     /// cross-section (`n^2 (10 (n - 1) + 1)` nodes) or the cube's side (`m^3` nodes; m - 1
     /// a multiple of 4, so that the punch edges at 2.5 and 7.5 cm fall on lattice lines);
     /// for the sphere, spacings per radius (463, 2,955, 9,031 and 20,275 nodes at 4, 8,
-    /// 12 and 16).
+    /// 12 and 16); for the column, spacings per radius.
     pub fn points_per_side(self, level: usize) -> usize {
         match self {
             CaseId::Cantilever | CaseId::Frequency => [3, 4, 5, 7, 9, 11][level.min(5)],
             CaseId::Stretch | CaseId::Indentation => [5, 9, 13, 17, 21, 25][level.min(5)],
             CaseId::Sphere => [4, 8, 12, 16, 20, 24][level.min(5)],
+            CaseId::Column => [3, 4, 5, 6, 8, 10][level.min(5)],
         }
     }
 }
@@ -365,7 +387,7 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
         CaseId::Frequency => prepare_frequency,
         CaseId::Stretch => prepare_stretch,
         CaseId::Indentation => prepare_indentation,
-        CaseId::Sphere => |_, _, _| {},
+        CaseId::Sphere | CaseId::Column => |_, _, _| {},
     };
     let n = case.points_per_side(spec.level);
     let (max, h) = match case {
@@ -374,13 +396,14 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
             ([BEAM_LENGTH, BEAM_WIDTH, BEAM_WIDTH], h)
         }
         CaseId::Sphere => ([CUBE; 3], SPHERE_RADIUS / n as f64),
+        CaseId::Column => ([CUBE; 3], COLUMN_RADIUS / n as f64),
         _ => ([CUBE; 3], CUBE / (n - 1) as f64),
     };
     let mut material = model.material(YOUNG, h);
-    if case == CaseId::Sphere
+    if matches!(case, CaseId::Sphere | CaseId::Column)
         && matches!(model, ModelId::Deb | ModelId::DebCorotated | ModelId::Pba)
     {
-        material.push_str(&format!("\nhourglass = {SPHERE_HOURGLASS:e}\n"));
+        material.push_str(&format!("\nhourglass = {RESAMPLED_HOURGLASS:e}\n"));
     }
     let floor = model.damping_floor(YOUNG, h);
     let (gravity, damping, fixed) = match case {
@@ -407,6 +430,13 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
                 "[[load]]\nsphere = {{ centre = [0.0, 0.0, 0.0], radius = 1.0 }}\npressure = {SPHERE_PRESSURE:e}\n"
             ),
         ),
+        // The resampled bottom face's nodes lie on y = 0 (they are projected onto the
+        // input surface); interior nodes are at least h / 2 inside it.
+        CaseId::Column => (
+            COLUMN_GRAVITY,
+            (2.0 * cube_omega(true)).max(floor),
+            format!("[[fixed]]\naxis = \"y\"\nbelow = {:e}\n", 0.25 * h),
+        ),
     };
     let scene = scene(max, h, &material, gravity, damping, &fixed);
     let mut tissue = match case {
@@ -417,6 +447,18 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
                 needlesim_core::geometry::shapes::capsule([0.0, -r, 0.0], 2.0 * r, r, 96, 48);
             let cloud =
                 needlesim_core::geometry::resample::resample(&surface, h, Path::new("sphere"))
+                    .map_err(|e| RunError::from(needlesim_core::SceneError::from(e)))?;
+            Tissue::from_cloud(&scene, cloud, 0)
+        }
+        CaseId::Column => {
+            let surface = needlesim_core::geometry::shapes::cylinder(
+                [0.0; 3],
+                COLUMN_HEIGHT,
+                COLUMN_RADIUS,
+                192,
+            );
+            let cloud =
+                needlesim_core::geometry::resample::resample(&surface, h, Path::new("column"))
                     .map_err(|e| RunError::from(needlesim_core::SceneError::from(e)))?;
             Tissue::from_cloud(&scene, cloud, 0)
         }
@@ -565,6 +607,7 @@ pub fn run_case(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<CaseResu
         CaseId::Stretch => stretch(model, spec),
         CaseId::Indentation => indentation(model, spec),
         CaseId::Sphere => sphere(model, spec),
+        CaseId::Column => column(model, spec),
     }
 }
 
@@ -901,4 +944,52 @@ fn sphere(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
         .sum();
     let rms = (sum / n as f64).sqrt() / (reference.abs() * SPHERE_RADIUS);
     Ok(result(CaseId::Sphere, model, &s, spec, run, reference, rms))
+}
+
+/// A slow mode of the column: the cube's quarter shear wave ([`cube_omega`]) over its
+/// height, which is the cube's side.
+fn column_omega() -> f64 {
+    debug_assert_eq!(COLUMN_HEIGHT, CUBE);
+    cube_omega(true)
+}
+
+fn column(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
+    let reference = crate::report::fem::column()?;
+    let s = setup(CaseId::Column, model, spec)?;
+    let masses = &s.tissue.masses;
+    let total: f64 = masses.iter().sum();
+    let mut b = backend_of(&s, spec)?;
+    // Mass-weighted mean sag: each node stands for density times its cell volume.
+    let sag = |b: &mut dyn Backend| -> Result<f64, ReportError> {
+        let p = read_all(b, NodeField::Position)?;
+        Ok(-p
+            .iter()
+            .zip(&s.rest)
+            .zip(masses)
+            .map(|((q, r), m)| m * (q[1] as f64 - r[1]))
+            .sum::<f64>()
+            / total)
+    };
+    let run = relax(b.as_mut(), s.dt, column_omega(), sag, None)?;
+    let p = read_all(b.as_mut(), NodeField::Position)?;
+    let sum: f64 = p
+        .iter()
+        .zip(&s.rest)
+        .map(|(q, r)| {
+            let u = reference.displacement_per_g(*r);
+            (0..3)
+                .map(|a| (q[a] as f64 - r[a] - COLUMN_GRAVITY * u[a]).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    let rms = (sum / p.len() as f64).sqrt() / (COLUMN_GRAVITY * reference.top_sag_per_g);
+    Ok(result(
+        CaseId::Column,
+        model,
+        &s,
+        spec,
+        run,
+        COLUMN_GRAVITY * reference.mean_sag_per_g,
+        rms,
+    ))
 }

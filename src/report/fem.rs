@@ -1,10 +1,11 @@
-//! The indentation case's reference solution: a converged quadratic-tetrahedron solution
-//! computed with scikit-fem by `scripts/fem_indentation.py` (see
+//! The finite element reference solutions ([`indentation`], [`column`]). Indentation: a
+//! converged quadratic-tetrahedron solution computed with scikit-fem by
+//! `scripts/fem_indentation.py` (see
 //! `reference/indentation_fem.md`), shipped as the punch force and the displacement on a
 //! 17 x 17 x 17 grid over the cube, interpolated trilinearly. The solution is linear, so
 //! force and displacements are scaled from the reference depth (2 mm) to [`PUNCH_DEPTH`].
 
-use super::cases::{ReportError, CUBE, PUNCH_DEPTH};
+use super::cases::{ReportError, COLUMN_HEIGHT, COLUMN_RADIUS, CUBE, PUNCH_DEPTH};
 use std::sync::OnceLock;
 
 const CSV: &str = include_str!("../../reference/indentation_fem.csv");
@@ -55,18 +56,7 @@ fn parse() -> Result<Indentation, String> {
             "indentation_fem.md does not state the punch displacement u = (0, -{REFERENCE_DEPTH}, 0)"
         ));
     }
-    let force = MD
-        .lines()
-        .find_map(|l| {
-            l.trim()
-                .trim_matches('`')
-                .strip_prefix("reaction_force_N = ")
-        })
-        .ok_or("no `reaction_force_N = ` line in indentation_fem.md")?
-        .trim()
-        .trim_matches('`')
-        .parse::<f64>()
-        .map_err(|e| format!("reaction_force_N: {e}"))?;
+    let force = md_value(MD, "indentation_fem.md", "reaction_force_N")?;
     let mut lines = CSV.lines();
     if lines.next().map(str::trim) != Some("x,y,z,ux,uy,uz") {
         return Err("indentation_fem.csv: header is not x,y,z,ux,uy,uz".into());
@@ -111,6 +101,126 @@ fn parse() -> Result<Indentation, String> {
 pub fn indentation() -> Result<&'static Indentation, ReportError> {
     static CELL: OnceLock<Result<Indentation, String>> = OnceLock::new();
     CELL.get_or_init(parse)
+        .as_ref()
+        .map_err(|e| ReportError::Reference(e.clone()))
+}
+
+/// The column case's reference: an axisymmetric quadratic-triangle solution from
+/// scikit-fem (`scripts/fem_column.py`, `reference/column_fem.md`), shipped per unit
+/// gravity as the mean sag and `(u_r, u_y)` on an 11 x 41 grid over the `(r, y)`
+/// section, interpolated bilinearly; scaled linearly to the case's gravity.
+#[derive(Debug)]
+pub struct Column {
+    /// Mean sag over the volume, `-(1/V) int u_y dV`, per unit gravity, m / (m/s^2).
+    pub mean_sag_per_g: f64,
+    /// Sag of the top face's centre per unit gravity, m / (m/s^2).
+    pub top_sag_per_g: f64,
+    /// `(u_r, u_y)` per unit gravity, r outermost.
+    u: Vec<[f64; 2]>,
+}
+
+const COLUMN_CSV: &str = include_str!("../../reference/column_fem.csv");
+const COLUMN_MD: &str = include_str!("../../reference/column_fem.md");
+const COLUMN_R_POINTS: usize = 11;
+const COLUMN_Y_POINTS: usize = 41;
+
+impl Column {
+    /// The displacement per unit gravity at rest position `p` (the column's axis is the
+    /// y axis; `p` is clamped to the section).
+    pub fn displacement_per_g(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = (p[0] * p[0] + p[2] * p[2]).sqrt();
+        let steps = [
+            COLUMN_RADIUS / (COLUMN_R_POINTS - 1) as f64,
+            COLUMN_HEIGHT / (COLUMN_Y_POINTS - 1) as f64,
+        ];
+        let points = [COLUMN_R_POINTS, COLUMN_Y_POINTS];
+        let mut base = [0usize; 2];
+        let mut frac = [0.0; 2];
+        for (a, v) in [r, p[1]].into_iter().enumerate() {
+            let s = (v / steps[a]).clamp(0.0, (points[a] - 1) as f64);
+            base[a] = (s.floor() as usize).min(points[a] - 2);
+            frac[a] = s - base[a] as f64;
+        }
+        let mut u = [0.0; 2];
+        for corner in 0..4 {
+            let o = [corner & 1, corner >> 1];
+            let w: f64 = (0..2)
+                .map(|a| if o[a] == 1 { frac[a] } else { 1.0 - frac[a] })
+                .product();
+            let v = self.u[(base[0] + o[0]) * COLUMN_Y_POINTS + base[1] + o[1]];
+            u[0] += w * v[0];
+            u[1] += w * v[1];
+        }
+        let (cos, sin) = if r > 0.0 {
+            (p[0] / r, p[2] / r)
+        } else {
+            (0.0, 0.0)
+        };
+        [u[0] * cos, u[1], u[0] * sin]
+    }
+}
+
+/// The value of the line `key = <number>` of a reference `.md`.
+fn md_value(md: &str, file: &str, key: &str) -> Result<f64, String> {
+    let prefix = format!("{key} = ");
+    md.lines()
+        .find_map(|l| l.trim().trim_matches('`').strip_prefix(prefix.as_str()))
+        .ok_or_else(|| format!("no `{prefix}` line in {file}"))?
+        .trim()
+        .trim_matches('`')
+        .parse::<f64>()
+        .map_err(|e| format!("{file}: {key}: {e}"))
+}
+
+fn parse_column() -> Result<Column, String> {
+    for (what, value) in [("R", COLUMN_RADIUS), ("H", COLUMN_HEIGHT)] {
+        if !COLUMN_MD.contains(&format!("{what} = {value} m")) {
+            return Err(format!("column_fem.md does not state {what} = {value} m"));
+        }
+    }
+    let mean_sag_per_g = md_value(COLUMN_MD, "column_fem.md", "mean_sag_per_g")?;
+    let top_sag_per_g = md_value(COLUMN_MD, "column_fem.md", "top_centre_sag_per_g")?;
+    let mut lines = COLUMN_CSV.lines();
+    if lines.next().map(str::trim) != Some("r,y,ur,uy") {
+        return Err("column_fem.csv: header is not r,y,ur,uy".into());
+    }
+    let mut u = Vec::with_capacity(COLUMN_R_POINTS * COLUMN_Y_POINTS);
+    for (row, line) in lines.filter(|l| !l.trim().is_empty()).enumerate() {
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|s| s.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("column_fem.csv row {}: {e}", row + 2))?;
+        let expect = [
+            (row / COLUMN_Y_POINTS) as f64 * COLUMN_RADIUS / (COLUMN_R_POINTS - 1) as f64,
+            (row % COLUMN_Y_POINTS) as f64 * COLUMN_HEIGHT / (COLUMN_Y_POINTS - 1) as f64,
+        ];
+        if v.len() != 4 || (0..2).any(|a| (v[a] - expect[a]).abs() > 1e-7) {
+            return Err(format!(
+                "column_fem.csv row {}: expected the point {expect:?} with 2 components",
+                row + 2
+            ));
+        }
+        u.push([v[2], v[3]]);
+    }
+    if u.len() != COLUMN_R_POINTS * COLUMN_Y_POINTS {
+        return Err(format!(
+            "column_fem.csv: {} points, expected {}",
+            u.len(),
+            COLUMN_R_POINTS * COLUMN_Y_POINTS
+        ));
+    }
+    Ok(Column {
+        mean_sag_per_g,
+        top_sag_per_g,
+        u,
+    })
+}
+
+/// The parsed column reference (parsed once).
+pub fn column() -> Result<&'static Column, ReportError> {
+    static CELL: OnceLock<Result<Column, String>> = OnceLock::new();
+    CELL.get_or_init(parse_column)
         .as_ref()
         .map_err(|e| ReportError::Reference(e.clone()))
 }

@@ -1,5 +1,6 @@
 //! Closed triangle surfaces of simple solids, for tests, reference cases and examples:
-//! a sphere (subdivided icosahedron) and a capsule (cylinder with hemispherical caps).
+//! a sphere (subdivided icosahedron), a capsule (cylinder with hemispherical caps) and a
+//! cylinder with flat ends.
 
 use super::obj::Surface;
 
@@ -101,8 +102,36 @@ pub fn capsule(base: [f64; 3], length: f64, radius: f64, segments: usize, rings:
         let a = std::f64::consts::FRAC_PI_2 * i as f64 / rings as f64;
         levels.push((top + radius * a.cos(), radius * a.sin()));
     }
+    revolve(base, length, &levels, segments)
+}
+
+/// A solid cylinder along y from `base` (the centre of its bottom face) to
+/// `base + height`, flat ends: `segments` vertices around, rings on the end faces and the
+/// side about as far apart as the vertices of a ring.
+pub fn cylinder(base: [f64; 3], height: f64, radius: f64, segments: usize) -> Surface {
+    let segments = segments.max(3);
+    let arc = 2.0 * std::f64::consts::PI * radius / segments as f64;
+    let caps = ((radius / arc).round() as usize).max(1);
+    let body = ((height / arc).round() as usize).max(1);
+    let mut levels: Vec<(f64, f64)> = Vec::new();
+    for i in 1..=caps {
+        levels.push((base[1], radius * i as f64 / caps as f64));
+    }
+    for i in 1..body {
+        levels.push((base[1] + height * i as f64 / body as f64, radius));
+    }
+    for i in (1..=caps).rev() {
+        levels.push((base[1] + height, radius * i as f64 / caps as f64));
+    }
+    revolve(base, height, &levels, segments)
+}
+
+/// The closed surface of revolution about the y axis through `base` with poles at `base`
+/// and `base + length` and the rings `levels` (height, radius) between them, bottom to
+/// top, `segments` vertices per ring.
+fn revolve(base: [f64; 3], length: f64, levels: &[(f64, f64)], segments: usize) -> Surface {
     let mut vertices = vec![base];
-    for &(y, r) in &levels {
+    for &(y, r) in levels {
         for k in 0..segments {
             let a = 2.0 * std::f64::consts::PI * k as f64 / segments as f64;
             vertices.push([base[0] + r * a.cos(), y, base[2] - r * a.sin()]);
@@ -140,7 +169,7 @@ pub fn capsule(base: [f64; 3], length: f64, radius: f64, segments: usize, rings:
 mod tests {
     use super::*;
 
-    /// Both are closed and outward, and their volumes approach the solids' from below.
+    /// All are closed and outward, and their volumes approach the solids' from below.
     #[test]
     fn shapes_are_closed_outward_and_near_their_volume() {
         let p = std::path::Path::new("shape");
@@ -156,6 +185,14 @@ mod tests {
         crate::geometry::obj::check_closed_manifold(p, c.vertices.len(), &c.triangles).unwrap();
         let exact = std::f64::consts::PI * 0.02f64.powi(2) * (0.1 - 0.04)
             + 4.0 / 3.0 * std::f64::consts::PI * 0.02f64.powi(3);
+        assert!(
+            c.volume < exact && c.volume > 0.99 * exact,
+            "{} vs {exact}",
+            c.volume
+        );
+        let c = cylinder([0.0; 3], 0.1, 0.025, 64);
+        crate::geometry::obj::check_closed_manifold(p, c.vertices.len(), &c.triangles).unwrap();
+        let exact = std::f64::consts::PI * 0.025f64.powi(2) * 0.1;
         assert!(
             c.volume < exact && c.volume > 0.99 * exact,
             "{} vs {exact}",
