@@ -292,3 +292,87 @@ fn a_unit_mistake_is_caught_before_allocating() {
         "{msg}"
     );
 }
+
+/// `rotate` and `translate` move a surface file rigidly (after `scale`). A shift alone
+/// shifts every node (same count, positions within 1e-9 m: f64, on a spacing that puts
+/// no lattice point on the surface). A capsule along y (the
+/// file in millimetres) turned 90 degrees about z and shifted lies where the turned file
+/// lies: its nodes' bounds are inside the turned file's bounds and within a quarter
+/// spacing of them (resampled vertices sit on the surface; the lattice is anchored at
+/// the new bounds, so the nodes themselves differ), and the total mass is unchanged
+/// (1e-9 relative: the enclosed volume is). Bad transforms are errors naming their key.
+#[test]
+fn surface_files_can_be_rotated_and_translated() {
+    let dir = tempfile::tempdir().unwrap();
+    let capsule = shapes::capsule([0.0; 3], 100.0, 20.0, 48, 12);
+    write_obj(&dir.path().join("cap.obj"), &capsule);
+    // Not a divisor of the radius: no lattice point lies exactly on the surface, where
+    // the shifted lattice's rounding could flip an inside test.
+    let h = 0.0047;
+    let base = format!("kind = \"obj\", path = \"cap.obj\", spacing = {h}, scale = 0.001");
+    let plain = scene(&format!("{{ {base} }}"), "cell", dir.path());
+    let shifted = scene(
+        &format!("{{ {base}, translate = [0.5, -0.25, 1.0] }}"),
+        "cell",
+        dir.path(),
+    );
+    let moved = scene(
+        &format!(
+            "{{ {base}, rotate = {{ axis = [0.0, 0.0, 2.0], degrees = 90.0 }}, translate = [0.5, -0.25, 1.0] }}"
+        ),
+        "cell",
+        dir.path(),
+    );
+    let cloud = |s: &Scene| geometry::build(&s.tissue.geometry, dir.path()).unwrap();
+    let (a, b) = (cloud(&plain), cloud(&shifted));
+    assert_eq!(a.positions.len(), b.positions.len());
+    for (p, q) in a.positions.iter().zip(&b.positions) {
+        let t = [0.5, -0.25, 1.0];
+        assert!(
+            (0..3).all(|k| (p[k] + t[k] - q[k]).abs() < 1e-9),
+            "{p:?} {q:?}"
+        );
+    }
+    // The file spans x, z in [-20, 20] mm and y in [0, 100] mm; (x, y, z) -> (-y, x, z) + t.
+    let expect_lo = [-0.1 + 0.5, -0.02 - 0.25, -0.02 + 1.0];
+    let expect_hi = [0.5, 0.02 - 0.25, 0.02 + 1.0];
+    let (lo, hi) = geometry::bounds(&cloud(&moved).positions);
+    for a in 0..3 {
+        let inside = lo[a] > expect_lo[a] - 1e-9 && hi[a] < expect_hi[a] + 1e-9;
+        let near = lo[a] < expect_lo[a] + 0.25 * h && hi[a] > expect_hi[a] - 0.25 * h;
+        assert!(
+            inside && near,
+            "axis {a}: [{}, {}] vs [{}, {}]",
+            lo[a],
+            hi[a],
+            expect_lo[a],
+            expect_hi[a]
+        );
+    }
+    let mass = |s: &Scene| Tissue::from_scene(s).unwrap().masses.iter().sum::<f64>();
+    let (m0, m1) = (mass(&plain), mass(&moved));
+    assert!((m1 / m0 - 1.0).abs() < 1e-9, "{m0} vs {m1}");
+    for (bad, key) in [
+        (
+            "rotate = { axis = [0.0, 0.0, 0.0], degrees = 90.0 }",
+            "tissue.geometry.rotate.axis",
+        ),
+        (
+            "rotate = { axis = [0.0, 1.0, 0.0], degrees = inf }",
+            "tissue.geometry.rotate.degrees",
+        ),
+        ("translate = [0.0, nan, 0.0]", "tissue.geometry.translate"),
+        ("translate = [1e6, 0.0, 0.0]", "tissue.geometry.translate"),
+    ] {
+        let text = format!("[tissue]\ngeometry = {{ {base}, {bad} }}\n[material]\n{DEB}\n");
+        let err = Scene::from_toml_str(&text, dir.path())
+            .map_err(|e| e.to_string())
+            .and_then(|s| {
+                Tissue::from_scene(&s)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
+            })
+            .unwrap_err();
+        assert!(err.contains(key), "{bad}: {err}");
+    }
+}

@@ -185,6 +185,37 @@ pub struct ObjGeometry {
     /// Where the surface nodes come from (`surface`, default `"resample"`).
     #[serde(default)]
     pub surface: SurfaceNodes,
+    /// Rotation applied after `scale`, about an axis through the origin (`rotate`).
+    #[serde(default)]
+    pub rotate: Option<AxisRotation>,
+    /// Translation in metres applied last (`translate`, default none).
+    #[serde(default)]
+    pub translate: [f64; 3],
+}
+
+/// A right-handed rotation by `degrees` about `axis` (any length but zero).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AxisRotation {
+    /// Rotation axis.
+    pub axis: [f64; 3],
+    /// Angle in degrees.
+    pub degrees: f64,
+}
+
+impl AxisRotation {
+    /// The rotation matrix (Rodrigues' formula), rows first.
+    pub fn matrix(&self) -> [[f64; 3]; 3] {
+        let l = self.axis.iter().map(|c| c * c).sum::<f64>().sqrt();
+        let [x, y, z] = self.axis.map(|c| c / l);
+        let (s, c) = self.degrees.to_radians().sin_cos();
+        let t = 1.0 - c;
+        [
+            [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+            [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+            [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+        ]
+    }
 }
 
 /// The surface nodes of a surface-file geometry.
@@ -1213,13 +1244,24 @@ impl Scene {
                     }
                 }
             }
-            Geometry::Obj(ObjGeometry { spacing, scale, .. })
-            | Geometry::Stl(ObjGeometry { spacing, scale, .. })
-            | Geometry::Vtk(ObjGeometry { spacing, scale, .. }) => {
+            Geometry::Obj(g) | Geometry::Stl(g) | Geometry::Vtk(g) => {
                 // The lattice size is checked against the surface's bounds when the
                 // geometry is built.
-                positive_finite("tissue.geometry.spacing", *spacing)?;
-                positive_finite("tissue.geometry.scale", *scale)?;
+                positive_finite("tissue.geometry.spacing", g.spacing)?;
+                positive_finite("tissue.geometry.scale", g.scale)?;
+                for c in g.translate {
+                    finite("tissue.geometry.translate", c)?;
+                }
+                if let Some(r) = g.rotate {
+                    finite("tissue.geometry.rotate.degrees", r.degrees)?;
+                    let length = r.axis.iter().map(|c| c * c).sum::<f64>().sqrt();
+                    if !(length.is_finite() && length > 0.0) {
+                        return Err(SceneError::invalid(
+                            "tissue.geometry.rotate.axis",
+                            format!("must be a finite non-zero vector, got {:?}", r.axis),
+                        ));
+                    }
+                }
             }
         }
         match self.material {

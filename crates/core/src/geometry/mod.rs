@@ -89,6 +89,7 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
                     ))
                 }
             };
+            check_f32_resolution(*min, *max, lattice.spacing, "tissue.geometry.min")?;
             Ok(lattice.cloud())
         }
         Geometry::Obj(g) | Geometry::Stl(g) | Geometry::Vtk(g) => {
@@ -97,12 +98,22 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             } else {
                 base_dir.join(&g.path)
             };
-            let surface = match geometry {
+            let mut surface = match geometry {
                 Geometry::Stl(_) => obj::load_closed_stl(&full, g.scale)?,
                 Geometry::Vtk(_) => obj::load_closed_vtk(&full, g.scale)?,
                 _ => obj::load_closed_surface(&full, g.scale)?,
             };
+            // A rotation keeps the orientation and the volume of the surface.
+            let m = g.rotate.map(|r| r.matrix());
+            for v in &mut surface.vertices {
+                let r = match m {
+                    Some(m) => std::array::from_fn(|i| (0..3).map(|j| m[i][j] * v[j]).sum()),
+                    None => *v,
+                };
+                *v = std::array::from_fn(|i| r[i] + g.translate[i]);
+            }
             let (lo, hi) = bounds(&surface.vertices);
+            check_f32_resolution(lo, hi, g.spacing, "tissue.geometry.translate")?;
             let points = sampling::Lattice::count(lo, hi, g.spacing, 2);
             if points > MAX_LATTICE_POINTS {
                 let size: Vec<String> = (0..3).map(|a| format!("{:.3e}", hi[a] - lo[a])).collect();
@@ -126,6 +137,27 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             }
         }
     }
+}
+
+/// Node coordinates at most this many spacings from the origin: positions are stored in
+/// f32 (relative rounding 6e-8), so a node there is placed within 0.6% of a spacing.
+pub const MAX_COORDINATE_SPACINGS: f64 = 1e5;
+
+/// An error naming `key` when the body between `lo` and `hi` lies so far from the origin
+/// (or is so large) that f32 positions cannot resolve spacing `h`.
+fn check_f32_resolution(lo: [f64; 3], hi: [f64; 3], h: f64, key: &str) -> Result<(), SceneError> {
+    let far = lo.iter().chain(&hi).fold(0.0f64, |m, c| m.max(c.abs()));
+    if far.is_finite() && far <= MAX_COORDINATE_SPACINGS * h {
+        return Ok(());
+    }
+    Err(SceneError::invalid(
+        key,
+        format!(
+            "the body reaches {far:.3e} m from the origin, more than {MAX_COORDINATE_SPACINGS:.0e} \
+             spacings ({h:e} m): positions are stored in f32 and could not tell neighbouring \
+             nodes apart; move the body near the origin"
+        ),
+    ))
 }
 
 /// Area vector of every node on the surface: `sum over its triangles of area * normal / 3`
