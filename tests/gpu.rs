@@ -251,7 +251,9 @@ fn boundary_conditions_agree_on_gpu_and_cpu() {
         displacement = [0.0, -0.001, 0.0]\nramp = 0.02\n\
         [[load]]\nname = \"side\"\naxis = \"x\"\nabove = 0.099\npressure = 20.0\n";
     let scene = needlesim::Scene::from_toml_str(text, std::path::Path::new(".")).unwrap();
-    let run = |gpu_backend: bool| -> Option<(Vec<[f32; 4]>, Vec<[f64; 3]>)> {
+    // Final positions and reaction forces, or None without a GPU adapter.
+    type Outcome = (Vec<[f32; 4]>, Vec<[f64; 3]>);
+    let run = |gpu_backend: bool| -> Option<Outcome> {
         let prep = needlesim::needle::Simulation::prepare(&scene).unwrap();
         let backend: Box<dyn Backend> = if gpu_backend {
             Box::new(gpu(&prep.tissue)?)
