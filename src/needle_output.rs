@@ -1,5 +1,6 @@
-//! The needle's output files: `needle_force.csv` (one row per step) and plots of the
-//! needle force against depth and against time.
+//! The needle's output files: `needle_force.csv` (one row per step, streamed: rows are
+//! flushed at every frame) and plots of the needle force against depth and against time
+//! (drawn when the run ends, however it ends).
 
 use crate::plot::{line_plot, Labels, Series};
 use needlesim_needle::{PunctureState, Simulation};
@@ -21,30 +22,58 @@ fn state_name(s: PunctureState) -> &'static str {
     }
 }
 
-/// Writes the CSV and both plots into `dir`; returns the paths.
-pub fn write(sim: &Simulation, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
-    let csv = dir.join("needle_force.csv");
-    let mut out = std::io::BufWriter::new(std::fs::File::create(&csv)?);
-    writeln!(out, "{NEEDLE_CSV_HEADER}")?;
-    let mut depth = Vec::new();
-    for s in sim.history() {
-        let d = sim.depth_of(s.tip, s.direction);
-        depth.push(d);
-        writeln!(
+/// Streams `needle_force.csv`: [`NeedleCsv::append`] writes the steps recorded since its
+/// last call and flushes them.
+pub struct NeedleCsv {
+    path: PathBuf,
+    out: std::io::BufWriter<std::fs::File>,
+    written: usize,
+}
+
+impl NeedleCsv {
+    /// Creates `dir/needle_force.csv` with its header.
+    pub fn create(dir: &Path) -> std::io::Result<NeedleCsv> {
+        let path = dir.join("needle_force.csv");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        writeln!(out, "{NEEDLE_CSV_HEADER}")?;
+        out.flush()?;
+        Ok(NeedleCsv {
+            path,
             out,
-            "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{}",
-            s.step,
-            s.time,
-            d,
-            s.force.axial,
-            s.force.lateral,
-            state_name(s.state),
-            s.active_nodes,
-            s.needle_nodes
-        )?;
+            written: 0,
+        })
     }
-    out.flush()?;
+
+    /// Writes the rows of the steps `sim` recorded since the last call, and flushes.
+    pub fn append(&mut self, sim: &Simulation) -> std::io::Result<()> {
+        for s in sim.history().iter().skip(self.written) {
+            writeln!(
+                self.out,
+                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{}",
+                s.step,
+                s.time,
+                sim.depth_of(s.tip, s.direction),
+                s.force.axial,
+                s.force.lateral,
+                state_name(s.state),
+                s.active_nodes,
+                s.needle_nodes
+            )?;
+        }
+        self.written = sim.history().len();
+        self.out.flush()
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Draws both plots of the needle force into `dir`; returns their paths.
+pub fn plots(sim: &Simulation, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     let h = sim.history();
+    let depth: Vec<f64> = h.iter().map(|s| sim.depth_of(s.tip, s.direction)).collect();
     let series = |x: &dyn Fn(usize) -> f64| -> [Series<'static>; 2] {
         [
             Series {
@@ -79,5 +108,5 @@ pub fn write(sim: &Simulation, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
         },
         &series(&|i| h[i].time),
     )?;
-    Ok(vec![csv, by_depth, by_time])
+    Ok(vec![by_depth, by_time])
 }

@@ -1,6 +1,10 @@
 //! Output files: per-frame metrics as CSV, and the tissue surface of every frame as VTK XML
 //! PolyData (`.vtp`, ASCII) with a ParaView collection (`surface.pvd`) that orders the
 //! frames in time. Point data: displacement from rest in metres.
+//!
+//! Everything is streamed: each CSV row is flushed as it is written and `surface.pvd` is
+//! rewritten (write, then rename) after every frame, so a run that stops early, however it
+//! stops, leaves readable files up to its last frame.
 
 use crate::runner::FrameMetrics;
 use std::fs::File;
@@ -28,7 +32,7 @@ impl CsvWriter {
         })
     }
 
-    /// Appends one frame.
+    /// Appends one frame and flushes it to the file.
     pub fn row(&mut self, m: &FrameMetrics) -> std::io::Result<()> {
         writeln!(
             self.out,
@@ -41,7 +45,8 @@ impl CsvWriter {
             m.mean_displacement,
             m.max_speed,
             m.max_force
-        )
+        )?;
+        self.out.flush()
     }
 
     /// Flushes and returns the path.
@@ -169,13 +174,15 @@ impl SurfaceWriter {
         writeln!(out, "</Piece>\n</PolyData>\n</VTKFile>")?;
         out.flush()?;
         self.frames.push((time, name));
-        Ok(())
+        self.write_index()
     }
 
-    /// Writes `surface.pvd` and returns every path written.
-    pub fn finish(self) -> std::io::Result<Vec<PathBuf>> {
+    /// Rewrites `surface.pvd` with every frame so far: written beside it, then renamed over
+    /// it, so that the index on disk is always complete.
+    fn write_index(&self) -> std::io::Result<()> {
         let pvd = self.dir.join("surface.pvd");
-        let mut out = BufWriter::new(File::create(&pvd)?);
+        let partial = self.dir.join("surface.pvd.partial");
+        let mut out = BufWriter::new(File::create(&partial)?);
         writeln!(out, r#"<?xml version="1.0"?>"#)?;
         writeln!(
             out,
@@ -190,8 +197,47 @@ impl SurfaceWriter {
         }
         writeln!(out, "</Collection>\n</VTKFile>")?;
         out.flush()?;
+        drop(out);
+        std::fs::rename(&partial, &pvd)
+    }
+
+    /// Returns every path written (the index is already up to date).
+    pub fn finish(self) -> std::io::Result<Vec<PathBuf>> {
+        let pvd = self.dir.join("surface.pvd");
         let mut files = vec![pvd];
         files.extend(self.frames.iter().map(|(_, n)| self.dir.join(n)));
         Ok(files)
     }
+}
+
+/// The files a run writes into its output folder, removed before a fresh run writes
+/// there, so that no frame of an earlier run is mistaken for one of this run. Only
+/// these names are touched; anything else in the folder stays.
+pub fn clear_previous_run(out_dir: &Path) -> std::io::Result<()> {
+    let remove = |p: PathBuf| match std::fs::remove_file(&p) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    };
+    for name in [
+        "frames.csv",
+        "reactions.csv",
+        "needle_force.csv",
+        "needle_force.png",
+        "needle_force_time.png",
+        "surface.pvd",
+        "surface.pvd.partial",
+    ] {
+        remove(out_dir.join(name))?;
+    }
+    let frames = out_dir.join("surface");
+    if let Ok(entries) = std::fs::read_dir(&frames) {
+        for entry in entries {
+            let name = entry?.file_name();
+            let name = name.to_string_lossy();
+            if name.starts_with("surface_") && name.ends_with(".vtp") {
+                remove(frames.join(name.as_ref()))?;
+            }
+        }
+    }
+    Ok(())
 }

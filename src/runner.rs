@@ -39,6 +39,19 @@ pub enum RunError {
     /// The GPU backend was asked for and cannot run.
     #[error(transparent)]
     Gpu(#[from] needlesim_gpu::GpuError),
+    /// [`RunOptions::stop`] was set (the CLI sets it on SIGINT and SIGTERM).
+    #[error("interrupted at step {step}{}", match out_dir {
+        Some(d) => format!("; {frames} frames written to {} (complete up to the last frame)", d.display()),
+        None => String::new(),
+    })]
+    Interrupted {
+        /// Steps completed.
+        step: u64,
+        /// Frames written.
+        frames: usize,
+        /// Where the output is, if files were written.
+        out_dir: Option<PathBuf>,
+    },
 }
 
 impl From<SimulationError> for RunError {
@@ -65,6 +78,9 @@ pub struct RunOptions {
     pub threads: Option<usize>,
     /// Write output files (CSV and surface frames); off for benchmarks.
     pub write_files: bool,
+    /// When set (from a signal handler or another thread), the run stops at the next step
+    /// boundary with [`RunError::Interrupted`]; it is looked at every 16 steps.
+    pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl RunOptions {
@@ -76,6 +92,7 @@ impl RunOptions {
             backend: None,
             threads: None,
             write_files: true,
+            stop: None,
         }
     }
 }
@@ -199,10 +216,133 @@ fn metrics(
     m
 }
 
+/// Steps between two looks at [`RunOptions::stop`] (a frame may hold thousands).
+const STOP_CHECK_STEPS: u64 = 16;
+
+/// The open output files of a run.
+struct Outputs {
+    dir: PathBuf,
+    frames: Option<CsvWriter>,
+    surface: Option<SurfaceWriter>,
+    reactions: Option<(PathBuf, std::io::BufWriter<std::fs::File>)>,
+    needle: Option<crate::needle_output::NeedleCsv>,
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> RunError {
+    let path = path.to_path_buf();
+    move |source| RunError::Io { path, source }
+}
+
+impl Outputs {
+    /// Clears the files of an earlier run in `dir` and opens this run's.
+    fn create(scene: &Scene, sim: &Simulation, dir: &Path) -> Result<Outputs, RunError> {
+        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+        crate::output::clear_previous_run(dir).map_err(io_error(dir))?;
+        let frames = Some(CsvWriter::create(&dir.join("frames.csv")).map_err(io_error(dir))?);
+        let surface = if scene.run.surface_frames {
+            Some(SurfaceWriter::new(dir).map_err(io_error(dir))?)
+        } else {
+            None
+        };
+        // The reactions of the held sets, one row per frame.
+        let mut reactions = None;
+        if !sim.boundary().held.is_empty() {
+            let path = dir.join("reactions.csv");
+            let mut w =
+                std::io::BufWriter::new(std::fs::File::create(&path).map_err(io_error(&path))?);
+            let mut header = String::from("frame,step,time_s");
+            for h in &sim.boundary().held {
+                for c in ["x", "y", "z"] {
+                    header.push_str(&format!(",{}_f{c}_n", h.name));
+                }
+            }
+            writeln!(w, "{header}").map_err(io_error(&path))?;
+            reactions = Some((path, w));
+        }
+        let needle = if sim.needle().is_some() {
+            Some(crate::needle_output::NeedleCsv::create(dir).map_err(io_error(dir))?)
+        } else {
+            None
+        };
+        Ok(Outputs {
+            dir: dir.to_path_buf(),
+            frames,
+            surface,
+            reactions,
+            needle,
+        })
+    }
+
+    /// Writes one frame to every file and flushes them.
+    fn frame(
+        &mut self,
+        sim: &mut Simulation,
+        m: &FrameMetrics,
+        pos: &[[f32; 4]],
+        rest: &[[f64; 3]],
+    ) -> Result<(), RunError> {
+        let dir = self.dir.clone();
+        if let Some(w) = self.frames.as_mut() {
+            w.row(m).map_err(io_error(&dir))?;
+        }
+        if let Some(w) = self.surface.as_mut() {
+            w.frame(
+                m.time,
+                pos,
+                rest,
+                sim.triangles(),
+                &sim.needle_node_indices(),
+            )
+            .map_err(io_error(&dir))?;
+        }
+        if let Some((path, w)) = self.reactions.as_mut() {
+            let r = sim.reactions()?;
+            let mut row = format!("{},{},{:.6e}", m.frame, m.step, m.time);
+            for f in r.iter().flat_map(|r| r.force) {
+                row.push_str(&format!(",{f:.6e}"));
+            }
+            writeln!(w, "{row}").map_err(io_error(path))?;
+            w.flush().map_err(io_error(path))?;
+        }
+        if let Some(w) = self.needle.as_mut() {
+            w.append(sim).map_err(io_error(&dir))?;
+        }
+        Ok(())
+    }
+
+    /// Writes what is left (the needle rows since the last frame, the needle plots) and
+    /// returns every file written.
+    fn finish(self, sim: &Simulation) -> Result<Vec<PathBuf>, RunError> {
+        let dir = self.dir;
+        let mut files = Vec::new();
+        if let Some(w) = self.frames {
+            files.push(w.finish().map_err(io_error(&dir))?);
+        }
+        if let Some(w) = self.surface {
+            files.extend(w.finish().map_err(io_error(&dir))?);
+        }
+        if let Some((path, mut w)) = self.reactions {
+            w.flush().map_err(io_error(&path))?;
+            files.push(path);
+        }
+        if let Some(mut w) = self.needle {
+            w.append(sim).map_err(io_error(&dir))?;
+            files.push(w.path().to_path_buf());
+            files.extend(crate::needle_output::plots(sim, &dir).map_err(io_error(&dir))?);
+        }
+        Ok(files)
+    }
+}
+
 /// Builds and runs a scene. `progress(steps_done, steps_total)` is called after every
 /// frame. A scene with a `[needle]` table also writes the needle force of every step
 /// (`needle_force.csv`) and its plots against depth and time (`needle_force.png`,
 /// `needle_force_time.png`).
+///
+/// Output is streamed (see [`crate::output`]): when the run stops early (a divergence,
+/// a needle error, [`RunOptions::stop`]), every file is complete up to the last frame and
+/// the needle plots are drawn before the error is returned. A run first removes the files
+/// an earlier run left in its folder ([`crate::output::clear_previous_run`]).
 pub fn run_scene(
     scene: &Scene,
     options: &RunOptions,
@@ -217,101 +357,73 @@ pub fn run_scene(
     let has_needle = sim.needle().is_some();
     let total = options.steps.unwrap_or(scene.run.steps);
     let every = scene.run.output_every;
-
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| RunError::Io { path, source }
+    let mut outputs = if options.write_files {
+        Some(Outputs::create(scene, &sim, &options.out_dir)?)
+    } else {
+        None
     };
-    let mut csv = None;
-    let mut surface = None;
-    if options.write_files {
-        std::fs::create_dir_all(&options.out_dir).map_err(io(&options.out_dir))?;
-        csv = Some(
-            CsvWriter::create(&options.out_dir.join("frames.csv")).map_err(io(&options.out_dir))?,
-        );
-        if scene.run.surface_frames {
-            surface = Some(SurfaceWriter::new(&options.out_dir).map_err(io(&options.out_dir))?);
-        }
-    }
-
-    // The reactions of the held sets, one row per frame.
-    let mut reactions = None;
-    if options.write_files && !sim.boundary().held.is_empty() {
-        let path = options.out_dir.join("reactions.csv");
-        let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io(&path))?);
-        let mut header = String::from("frame,step,time_s");
-        for h in &sim.boundary().held {
-            for c in ["x", "y", "z"] {
-                header.push_str(&format!(",{}_f{c}_n", h.name));
-            }
-        }
-        writeln!(w, "{header}").map_err(io(&path))?;
-        reactions = Some((path, w));
-    }
+    let stopped = || {
+        options
+            .stop
+            .as_ref()
+            .is_some_and(|s| s.load(std::sync::atomic::Ordering::Relaxed))
+    };
     let mut frames = Vec::new();
     let mut step_time = Duration::ZERO;
     let mut done = 0u64;
-    loop {
-        let n = sim.backend().n_active();
-        let mut pos = vec![[0.0f32; 4]; n];
-        let mut vel = vec![[0.0f32; 4]; n];
-        let mut force = vec![[0.0f32; 4]; n];
-        let backend = sim.backend();
-        backend.read(NodeField::Position, 0..n, &mut pos)?;
-        backend.read(NodeField::Velocity, 0..n, &mut vel)?;
-        backend.read(NodeField::Force, 0..n, &mut force)?;
-        sim.check()?;
-        let rest = sim.rest_positions();
-        let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
-        if let Some(w) = csv.as_mut() {
-            w.row(&m).map_err(io(&options.out_dir))?;
-        }
-        if let Some(w) = surface.as_mut() {
-            w.frame(
-                m.time,
-                &pos,
-                &rest,
-                sim.triangles(),
-                &sim.needle_node_indices(),
-            )
-            .map_err(io(&options.out_dir))?;
-        }
-        if let Some((path, w)) = reactions.as_mut() {
-            let r = sim.reactions()?;
-            let mut row = format!("{},{},{:.6e}", m.frame, m.step, m.time);
-            for f in r.iter().flat_map(|r| r.force) {
-                row.push_str(&format!(",{f:.6e}"));
+    let mut run = || -> Result<(), RunError> {
+        loop {
+            let n = sim.backend().n_active();
+            let mut pos = vec![[0.0f32; 4]; n];
+            let mut vel = vec![[0.0f32; 4]; n];
+            let mut force = vec![[0.0f32; 4]; n];
+            let backend = sim.backend();
+            backend.read(NodeField::Position, 0..n, &mut pos)?;
+            backend.read(NodeField::Velocity, 0..n, &mut vel)?;
+            backend.read(NodeField::Force, 0..n, &mut force)?;
+            sim.check()?;
+            let rest = sim.rest_positions();
+            let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
+            if let Some(o) = outputs.as_mut() {
+                o.frame(&mut sim, &m, &pos, &rest)?;
             }
-            writeln!(w, "{row}").map_err(io(path))?;
+            frames.push(m);
+            progress(done, total);
+            if done >= total {
+                return Ok(());
+            }
+            let chunk = every.min(total - done);
+            let t0 = Instant::now();
+            let mut stepped = 0;
+            while stepped < chunk {
+                if stopped() {
+                    step_time += t0.elapsed();
+                    return Err(RunError::Interrupted {
+                        step: done + stepped,
+                        frames: frames.len(),
+                        out_dir: options.write_files.then(|| options.out_dir.clone()),
+                    });
+                }
+                let piece = STOP_CHECK_STEPS.min(chunk - stepped);
+                if let Err(e) = sim.step_n(piece) {
+                    done += stepped;
+                    return Err(e.into());
+                }
+                stepped += piece;
+            }
+            sim.backend().finish();
+            step_time += t0.elapsed();
+            done += chunk;
         }
-        frames.push(m);
-        progress(done, total);
-        if done >= total {
-            break;
-        }
-        let chunk = every.min(total - done);
-        let t0 = Instant::now();
-        sim.step_n(chunk)?;
-        sim.backend().finish();
-        step_time += t0.elapsed();
-        done += chunk;
-    }
-    let mut files = Vec::new();
-    if let Some(w) = csv {
-        files.push(w.finish().map_err(io(&options.out_dir))?);
-    }
-    if let Some(w) = surface {
-        files.extend(w.finish().map_err(io(&options.out_dir))?);
-    }
-    if let Some((path, mut w)) = reactions {
-        w.flush().map_err(io(&path))?;
-        files.push(path);
-    }
-    if has_needle && options.write_files {
-        files.extend(
-            crate::needle_output::write(&sim, &options.out_dir).map_err(io(&options.out_dir))?,
-        );
-    }
+    };
+    let outcome = run();
+    let files = match outputs {
+        Some(o) => o.finish(&sim),
+        None => Ok(Vec::new()),
+    };
+    // The run's own error first: it says why the run stopped.
+    outcome?;
+    let files = files?;
     let nodes = sim.backend().n_active();
     Ok(RunSummary {
         backend: sim.backend().name(),

@@ -5,7 +5,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use needlesim::core::scene::BackendChoice;
 use needlesim::gpu::GpuContext;
-use needlesim::{run_scene, RunOptions, Scene, SceneInfo, DEFAULT_SCENE};
+use needlesim::{run_scene, RunError, RunOptions, Scene, SceneInfo, DEFAULT_SCENE};
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
@@ -92,14 +92,40 @@ fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
     }
 }
 
+/// Exit status of a run stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
+const INTERRUPTED: u8 = 130;
+
 fn main() -> std::process::ExitCode {
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // The reader of stdout went away (`needlesim ... | head`): nothing more to say.
+        Err(e) if is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            let interrupted = e.chain().any(|c| {
+                matches!(
+                    c.downcast_ref::<RunError>(),
+                    Some(RunError::Interrupted { .. })
+                )
+            });
+            std::process::ExitCode::from(if interrupted { INTERRUPTED } else { 1 })
         }
     }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// `println!` that returns the write error (a closed pipe) instead of panicking.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout(), $($arg)*)
+    }};
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -108,16 +134,16 @@ fn run(cli: Cli) -> Result<()> {
             let (scene, _) = load(&scene)?;
             // One build serves the summary and the stability probe.
             let tissue = needlesim::needle::Simulation::prepare(&scene)?.tissue;
-            println!("{}", SceneInfo::of_tissue(&scene, &tissue));
+            say!("{}", SceneInfo::of_tissue(&scene, &tissue))?;
             let dt = tissue.step.dt as f64;
             let mut b = needlesim::CpuBackend::new(tissue, needlesim::Threading::Parallel)?;
             let est = needlesim::core::stability::max_eigenvalue(&mut b, 40)?;
-            println!(
+            say!(
                 "stability  critical dt {:.3e} s (undamped, at the initial state), scene dt {:.3e} s ({:.2} of it)",
                 est.critical_dt,
                 dt,
                 dt / est.critical_dt
-            );
+            )?;
         }
         Command::Report {
             out,
@@ -143,16 +169,24 @@ fn run(cli: Cli) -> Result<()> {
                 },
                 timing_backends,
             };
-            let summary = run_report(&options, |line| println!("{line}"))?;
-            println!(
+            // A closed stdout stops the report at the next line.
+            let mut pipe: std::io::Result<()> = Ok(());
+            let summary = run_report(&options, |line| {
+                if pipe.is_ok() {
+                    pipe = say!("{line}");
+                }
+            });
+            pipe?;
+            let summary = summary?;
+            say!(
                 "report      {} ({:.0} s): report.md, accuracy.csv, timing.csv, stable_dt.csv, extreme.csv, PNG plots",
                 options.out.display(),
                 summary.elapsed.as_secs_f64()
-            );
+            )?;
         }
         Command::Adapter => {
             let ctx = GpuContext::new(0)?;
-            println!("{}", ctx.describe());
+            say!("{}", ctx.describe())?;
         }
         Command::Run {
             scene,
@@ -163,12 +197,23 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let (scene, stem) = load(&scene)?;
             let out = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
+            // SIGINT and SIGTERM stop the run at a step boundary with its files complete
+            // up to the last frame; a second signal ends the process at once.
+            let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let flag = stop.clone();
+            ctrlc::set_handler(move || {
+                if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                    std::process::exit(INTERRUPTED as i32);
+                }
+            })
+            .context("installing the SIGINT/SIGTERM handler")?;
             let options = RunOptions {
                 out_dir: out.clone(),
                 steps,
                 backend,
                 threads,
                 write_files: true,
+                stop: Some(stop),
             };
             let total = steps.unwrap_or(scene.run.steps);
             let bar = ProgressBar::new(total);
@@ -176,45 +221,55 @@ fn run(cli: Cli) -> Result<()> {
                 ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {per_sec}  eta {eta}")
                     .context("progress bar template")?,
             );
-            let summary = run_scene(&scene, &options, |done, _| bar.set_position(done))
-                .with_context(|| format!("running scene `{stem}`"))?;
+            let summary = run_scene(&scene, &options, |done, _| bar.set_position(done));
             bar.finish_and_clear();
+            let summary = summary.with_context(|| {
+                format!(
+                    "running scene `{stem}` (output so far, complete up to its last frame: {})",
+                    out.display()
+                )
+            })?;
             for w in &summary.warnings {
                 eprintln!("warning: {w}");
             }
             let last = summary.frames.last().copied();
-            println!("scene       {stem} ({})", scene.material.short_name());
-            println!("backend     {}", summary.backend);
-            println!("nodes       {}", summary.nodes);
-            println!(
+            say!("scene       {stem} ({})", scene.material.short_name())?;
+            say!("backend     {}", summary.backend)?;
+            say!("nodes       {}", summary.nodes)?;
+            say!(
                 "steps       {} in {:.3} s of stepping: {:.0} steps/s ({:.3} s total)",
                 summary.steps,
                 summary.step_time.as_secs_f64(),
                 summary.steps_per_second(),
                 summary.total_time.as_secs_f64()
-            );
+            )?;
             if let Some(m) = last {
-                println!(
+                say!(
                     "final       t = {:.4} s, kinetic energy {:.3e} J, max displacement {:.3e} m",
-                    m.time, m.kinetic_energy, m.max_displacement
-                );
+                    m.time,
+                    m.kinetic_energy,
+                    m.max_displacement
+                )?;
             }
             if let Some(h) = summary.needle.as_ref().and_then(|h| h.last()) {
-                println!(
+                say!(
                     "needle      {:?}, {} needle nodes, force axial {:.4} N lateral {:.4} N",
-                    h.state, h.needle_nodes, h.force.axial, h.force.lateral
-                );
+                    h.state,
+                    h.needle_nodes,
+                    h.force.axial,
+                    h.force.lateral
+                )?;
             }
             let needle_files = if summary.needle.is_some() {
                 ", needle_force.csv, needle_force.png"
             } else {
                 ""
             };
-            println!(
+            say!(
                 "output      {} ({} files: frames.csv, surface.pvd for ParaView{needle_files})",
                 out.display(),
                 summary.files.len()
-            );
+            )?;
         }
     }
     Ok(())

@@ -1139,6 +1139,39 @@ fn de_weight<'de, D: serde::Deserializer<'de>>(d: D) -> Result<WeightKernel, D::
     })
 }
 
+/// Largest scene file read, bytes (scenes are a few kB).
+pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
+
+/// Largest surface file read, bytes (a 10-million-triangle binary STL is 500 MB).
+pub const MAX_SURFACE_FILE_BYTES: u64 = 2 << 30;
+
+/// An error naming `key` unless `path` is a regular file of at most `max` bytes: a device
+/// (`/dev/zero`), a pipe or a folder would be read until memory runs out, or fail later
+/// with a less clear message.
+pub fn check_input_file(path: &Path, max: u64, key: &str) -> Result<(), SceneError> {
+    let meta = std::fs::metadata(path).map_err(|source| SceneError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if !meta.is_file() {
+        return Err(SceneError::invalid(
+            key,
+            format!("{} is not a regular file", path.display()),
+        ));
+    }
+    if meta.len() > max {
+        return Err(SceneError::invalid(
+            key,
+            format!(
+                "{} holds {} bytes, more than the {max} read",
+                path.display(),
+                meta.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Scene {
     /// Parses and validates a scene from TOML text. Relative paths resolve against
     /// `base_dir`.
@@ -1149,6 +1182,7 @@ impl Scene {
     /// Reads, parses and validates a scene file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
         let path = path.as_ref();
+        check_input_file(path, MAX_SCENE_FILE_BYTES, "scene file")?;
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
             path: path.to_path_buf(),
             source,

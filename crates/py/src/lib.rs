@@ -50,8 +50,22 @@ fn state_name(s: PunctureState) -> &'static str {
     }
 }
 
+/// Deepest nesting of dicts and lists a scene may have (real scenes use 3; a dict that
+/// contains itself would otherwise recurse until the stack overflows).
+const MAX_SCENE_DEPTH: usize = 32;
+
 /// A Python value as TOML, naming the dotted key of anything that has no TOML form.
 fn to_toml(obj: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
+    to_toml_at(obj, key, 0)
+}
+
+fn to_toml_at(obj: &Bound<'_, PyAny>, key: &str, depth: usize) -> PyResult<toml::Value> {
+    if depth > MAX_SCENE_DEPTH {
+        return Err(value_error(format!(
+            "scene key `{key}`: nested more than {MAX_SCENE_DEPTH} levels deep (a dict or list \
+             that contains itself?)"
+        )));
+    }
     if obj.is_instance_of::<PyBool>() {
         return Ok(toml::Value::Boolean(obj.extract()?));
     }
@@ -75,14 +89,14 @@ fn to_toml(obj: &Bound<'_, PyAny>, key: &str) -> PyResult<toml::Value> {
             } else {
                 format!("{key}.{k}")
             };
-            t.insert(k, to_toml(&v, &sub)?);
+            t.insert(k, to_toml_at(&v, &sub, depth + 1)?);
         }
         return Ok(toml::Value::Table(t));
     }
     if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
         let mut out = Vec::new();
         for (i, v) in obj.try_iter()?.enumerate() {
-            out.push(to_toml(&v?, &format!("{key}[{i}]"))?);
+            out.push(to_toml_at(&v?, &format!("{key}[{i}]"), depth + 1)?);
         }
         return Ok(toml::Value::Array(out));
     }
@@ -197,12 +211,31 @@ impl PySimulation {
     /// Runs `n` steps with the interpreter lock released. Every `physics.check_every`
     /// steps and at the end, every position and velocity must be finite and every free
     /// node slower than `physics.max_speed` (RuntimeError naming the step and node).
+    /// Steps run in chunks of about 20 ms; between chunks pending signals are handled, so
+    /// Ctrl-C raises KeyboardInterrupt with the simulation at a step boundary (the steps
+    /// done so far stay done).
     #[pyo3(signature = (n=1))]
     fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
+        const CHUNK_SECONDS: f64 = 0.02;
         let sim = &self.sim;
+        let mut done = 0u64;
+        let mut chunk = 1u64;
+        while done < n {
+            let k = chunk.min(n - done);
+            let t0 = std::time::Instant::now();
+            py.detach(|| {
+                let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());
+                s.step_n(k).map_err(|e| e.to_string())
+            })
+            .map_err(PyRuntimeError::new_err)?;
+            done += k;
+            py.check_signals()?;
+            // Aim the next chunk at CHUNK_SECONDS, growing at most 4 times per chunk.
+            let spent = t0.elapsed().as_secs_f64().max(1e-9);
+            chunk = ((k as f64 * CHUNK_SECONDS / spent) as u64).clamp(1, 4 * k);
+        }
         py.detach(|| {
             let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());
-            s.step_n(n).map_err(|e| e.to_string())?;
             s.check().map_err(|e| e.to_string())
         })
         .map_err(PyRuntimeError::new_err)

@@ -198,3 +198,46 @@ def test_boundary_conditions_from_a_dict_and_their_reactions():
     with pytest.raises(ValueError, match=r"prescribed\[0\]"):
         bad = dict(scene, prescribed=[dict(scene["prescribed"][0], box={"min": [5, 5, 5], "max": [6, 6, 6]})])
         needlesim.Simulation.from_dict(bad)
+
+
+def test_a_scene_dict_that_contains_itself_is_a_value_error():
+    # It used to recurse until the interpreter crashed.
+    scene = {"tissue": {}}
+    scene["tissue"]["geometry"] = scene
+    with pytest.raises(ValueError, match="nested more than"):
+        needlesim.Simulation.from_dict(scene)
+    deep = {}
+    node = deep
+    for _ in range(5000):
+        node["a"] = {}
+        node = node["a"]
+    with pytest.raises(ValueError, match="nested more than"):
+        needlesim.Simulation.from_dict(deep)
+
+
+def test_step_is_interrupted_by_a_signal_at_a_step_boundary():
+    import signal
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    sim = needlesim.Simulation.from_scene(SAG, threads=1)
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    signal.setitimer(signal.ITIMER_REAL, 0.3)
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sim.step(10**9)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    elapsed = time.perf_counter() - t0
+    # Chunks of about 20 ms: the signal is handled well within a second.
+    assert elapsed < 2.0, elapsed
+    # The steps done before the interruption stay done, at a step boundary, and the
+    # simulation goes on.
+    done = sim.steps
+    assert 0 < done < 10**9 and abs(sim.time - done * sim.dt) < 1e-9
+    sim.step(10)
+    assert sim.steps == done + 10
+    assert np.isfinite(sim.positions).all()

@@ -98,6 +98,11 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             } else {
                 base_dir.join(&g.path)
             };
+            crate::scene::check_input_file(
+                &full,
+                crate::scene::MAX_SURFACE_FILE_BYTES,
+                "tissue.geometry.path",
+            )?;
             let mut surface = match geometry {
                 Geometry::Stl(_) => obj::load_closed_stl(&full, g.scale)?,
                 Geometry::Vtk(_) => obj::load_closed_vtk(&full, g.scale)?,
