@@ -173,3 +173,54 @@ fn devices_and_folders_are_not_read_as_input_files() {
         .to_string();
     assert!(err.contains("not a regular file"), "{err}");
 }
+
+/// Values that pass an f64 check but break in f32, where the kernels compute: a step that
+/// rounds to 0 or to infinity in f32 (it froze the clock, or wrote `NaN` times), and a
+/// density whose node mass or inverse mass leaves the f32 range (the body froze, or
+/// diverged at step 0). Each is an error naming its key.
+#[test]
+fn values_outside_the_f32_range_are_errors_naming_the_key() {
+    let scene = |density: &str, dt: &str| {
+        format!(
+            "[tissue]\ndensity = {density}\n\
+             geometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.02 }}\n\
+             [material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n[physics]\ndt = {dt}\n"
+        )
+    };
+    let error = |text: String| -> String {
+        match needlesim::Scene::from_toml_str(&text, Path::new(".")) {
+            Err(e) => e.to_string(),
+            Ok(s) => needlesim::Tissue::from_scene(&s)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default(),
+        }
+    };
+    for (density, dt, key) in [
+        ("1000.0", "1e-50", "physics.dt"),
+        ("1000.0", "1e300", "physics.dt"),
+        ("1e300", "1e-4", "tissue.density"),
+        ("1e-300", "1e-4", "tissue.density"),
+    ] {
+        let e = error(scene(density, dt));
+        assert!(
+            e.contains(key) && e.contains("f32"),
+            "density {density}, dt {dt}: {e:?}"
+        );
+    }
+    assert_eq!(error(scene("1000.0", "1e-4")), "");
+}
+
+/// A needle direction whose norm overflows or underflows in f64 still normalises to the
+/// unit vector along it (it used to normalise [1e300, 0, 0] to zero).
+#[test]
+fn extreme_needle_directions_normalise() {
+    use needlesim::needle::needle::unit;
+    for v in [[1e300, 0.0, 0.0], [0.0, -1e-200, 0.0], [3e300, 4e300, 0.0]] {
+        let u = unit(v).unwrap();
+        let n = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+        assert!((n - 1.0).abs() < 1e-15, "{v:?} -> {u:?}");
+        assert!((0..3).all(|a| u[a] * v[a] >= 0.0), "{v:?} -> {u:?}");
+    }
+    assert!(unit([0.0; 3]).is_err());
+}

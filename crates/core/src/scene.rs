@@ -1423,32 +1423,48 @@ fn elastic_moduli(young_modulus: f64, poisson_ratio: f64) -> Result<(), SceneErr
     Ok(())
 }
 
+/// Whether `v` survives the f32 conversion every kernel input goes through: finite in f32,
+/// and not flushed to zero or a subnormal (only 0 itself is 0).
+fn fits_f32(v: f64) -> bool {
+    let f = v as f32;
+    f.is_finite() && (v == 0.0 || f.is_normal())
+}
+
+/// The f32 range a parameter must lie in, for error messages.
+const F32_RANGE: &str = "its magnitude must lie between 1.2e-38 and 3.4e38 (it is used in f32)";
+
 fn finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
+    if !v.is_finite() {
         Err(SceneError::invalid(key, format!("must be finite, got {v}")))
+    } else if !fits_f32(v) {
+        Err(SceneError::invalid(key, format!("{v:e}: {F32_RANGE}")))
+    } else {
+        Ok(())
     }
 }
 
 fn positive_finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
+    if !(v.is_finite() && v > 0.0) {
         Err(SceneError::invalid(
             key,
             format!("must be a finite number > 0, got {v}"),
         ))
+    } else if !fits_f32(v) {
+        Err(SceneError::invalid(key, format!("{v:e}: {F32_RANGE}")))
+    } else {
+        Ok(())
     }
 }
 
 fn non_negative_finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
+    if !(v.is_finite() && v >= 0.0) {
         Err(SceneError::invalid(
             key,
             format!("must be a finite number >= 0, got {v}"),
         ))
+    } else if !fits_f32(v) {
+        Err(SceneError::invalid(key, format!("{v:e}: {F32_RANGE}")))
+    } else {
+        Ok(())
     }
 }

@@ -95,10 +95,19 @@ impl Tissue {
                 (vec![m; n], m)
             }
         };
-        if let Some(i) = masses.iter().position(|m| !(m.is_finite() && *m > 0.0)) {
+        // Masses and inverse masses are stored in f32: both must be normal f32 numbers
+        // (a density of 1e300 would round the mass to infinity and freeze the body).
+        let representable = |m: f64| {
+            m.is_finite() && m > 0.0 && (m as f32).is_normal() && ((1.0 / m) as f32).is_normal()
+        };
+        if let Some(i) = masses.iter().position(|&m| !representable(m)) {
             return Err(SceneError::invalid(
                 "tissue.density",
-                format!("node {i} gets mass {} kg: density times its cell volume must be a finite positive number", masses[i]),
+                format!(
+                    "node {i} gets mass {:e} kg: density times its cell volume must be a positive \
+                     number whose value and inverse fit in f32 (1.2e-38 to 3.4e38)",
+                    masses[i]
+                ),
             ));
         }
         let (boundary, fixed) = build_boundary(scene, &cloud, &masses)?;

@@ -46,11 +46,15 @@ pub fn norm(v: [f64; 3]) -> f64 {
 /// `v / |v|`, or an error for a zero or non-finite vector.
 pub fn unit(v: [f64; 3]) -> Result<[f64; 3], NeedleError> {
     finite("direction", v)?;
-    let n = norm(v);
-    if n < 1e-12 {
+    // Scaled by the largest component first, so that neither [1e300, 0, 0] (whose norm
+    // overflows) nor [1e-200, 0, 0] (whose squares underflow) normalises to zero.
+    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 {
         return Err(NeedleError::ZeroDirection(v));
     }
-    Ok(v.map(|x| x / n))
+    let w = v.map(|x| x / m);
+    let n = norm(w);
+    Ok(w.map(|x| x / n))
 }
 
 impl Needle {
