@@ -1,5 +1,5 @@
 //! The needle's output files: `needle_force.csv` (one row per step, streamed: rows are
-//! flushed at every frame) and plots of the needle force against depth and against time
+//! flushed at every frame once the tip has touched the tissue, and at the end) and plots of the needle force against depth and against time
 //! (drawn when the run ends, however it ends).
 
 use crate::plot::{line_plot, Labels, Series};
@@ -45,7 +45,14 @@ impl NeedleCsv {
     }
 
     /// Writes the rows of the steps `sim` recorded since the last call, and flushes.
-    pub fn append(&mut self, sim: &Simulation) -> std::io::Result<()> {
+    /// Depth is measured from the first contact point, which is known only once the tip
+    /// has touched: until then rows are held back, unless `last` (the run is ending; the
+    /// depth then counts from the start tip, as documented for a needle that never
+    /// touched).
+    pub fn append(&mut self, sim: &Simulation, last: bool) -> std::io::Result<()> {
+        if sim.entry_point().is_none() && !last {
+            return Ok(());
+        }
         for s in sim.history().iter().skip(self.written) {
             writeln!(
                 self.out,

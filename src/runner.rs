@@ -305,7 +305,7 @@ impl Outputs {
             w.flush().map_err(io_error(path))?;
         }
         if let Some(w) = self.needle.as_mut() {
-            w.append(sim).map_err(io_error(&dir))?;
+            w.append(sim, false).map_err(io_error(&dir))?;
         }
         Ok(())
     }
@@ -326,7 +326,7 @@ impl Outputs {
             files.push(path);
         }
         if let Some(mut w) = self.needle {
-            w.append(sim).map_err(io_error(&dir))?;
+            w.append(sim, true).map_err(io_error(&dir))?;
             files.push(w.path().to_path_buf());
             files.extend(crate::needle_output::plots(sim, &dir).map_err(io_error(&dir))?);
         }

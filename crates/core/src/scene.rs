@@ -1145,14 +1145,15 @@ pub const MAX_SCENE_FILE_BYTES: u64 = 16 << 20;
 /// Largest surface file read, bytes (a 10-million-triangle binary STL is 500 MB).
 pub const MAX_SURFACE_FILE_BYTES: u64 = 2 << 30;
 
-/// An error naming `key` unless `path` is a regular file of at most `max` bytes: a device
+/// An error naming `key` if `path` is not a regular file or holds more than `max` bytes: a device
 /// (`/dev/zero`), a pipe or a folder would be read until memory runs out, or fail later
 /// with a less clear message.
 pub fn check_input_file(path: &Path, max: u64, key: &str) -> Result<(), SceneError> {
-    let meta = std::fs::metadata(path).map_err(|source| SceneError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    // A file that cannot be inspected (missing, no permission) is left to its reader,
+    // whose error names the file in its own terms.
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(());
+    };
     if !meta.is_file() {
         return Err(SceneError::invalid(
             key,
