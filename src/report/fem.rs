@@ -57,19 +57,13 @@ fn parse() -> Result<Indentation, String> {
         ));
     }
     let force = md_value(MD, "indentation_fem.md", "reaction_force_N")?;
-    let mut lines = CSV.lines();
-    if lines.next().map(str::trim) != Some("x,y,z,ux,uy,uz") {
-        return Err("indentation_fem.csv: header is not x,y,z,ux,uy,uz".into());
-    }
     let scale = PUNCH_DEPTH / REFERENCE_DEPTH;
     let h = CUBE / (POINTS - 1) as f64;
     let mut u = Vec::with_capacity(POINTS.pow(3));
-    for (row, line) in lines.filter(|l| !l.trim().is_empty()).enumerate() {
-        let v: Vec<f64> = line
-            .split(',')
-            .map(|s| s.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| format!("indentation_fem.csv row {}: {e}", row + 2))?;
+    for (row, v) in csv_rows(CSV, "indentation_fem.csv", "x,y,z,ux,uy,uz")?
+        .into_iter()
+        .enumerate()
+    {
         let (ix, iy, iz) = (
             row / (POINTS * POINTS),
             (row / POINTS) % POINTS,
@@ -160,6 +154,24 @@ impl Column {
     }
 }
 
+/// The numbers of each non-empty row of a reference CSV after its `header` line.
+fn csv_rows(text: &str, file: &str, header: &str) -> Result<Vec<Vec<f64>>, String> {
+    let mut lines = text.lines();
+    if lines.next().map(str::trim) != Some(header) {
+        return Err(format!("{file}: header is not {header}"));
+    }
+    lines
+        .filter(|l| !l.trim().is_empty())
+        .enumerate()
+        .map(|(row, line)| {
+            line.split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|e| format!("{file} row {}: {e}", row + 2))
+        })
+        .collect()
+}
+
 /// The value of the line `key = <number>` of a reference `.md`.
 fn md_value(md: &str, file: &str, key: &str) -> Result<f64, String> {
     let prefix = format!("{key} = ");
@@ -180,17 +192,11 @@ fn parse_column() -> Result<Column, String> {
     }
     let mean_sag_per_g = md_value(COLUMN_MD, "column_fem.md", "mean_sag_per_g")?;
     let top_sag_per_g = md_value(COLUMN_MD, "column_fem.md", "top_centre_sag_per_g")?;
-    let mut lines = COLUMN_CSV.lines();
-    if lines.next().map(str::trim) != Some("r,y,ur,uy") {
-        return Err("column_fem.csv: header is not r,y,ur,uy".into());
-    }
     let mut u = Vec::with_capacity(COLUMN_R_POINTS * COLUMN_Y_POINTS);
-    for (row, line) in lines.filter(|l| !l.trim().is_empty()).enumerate() {
-        let v: Vec<f64> = line
-            .split(',')
-            .map(|s| s.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| format!("column_fem.csv row {}: {e}", row + 2))?;
+    for (row, v) in csv_rows(COLUMN_CSV, "column_fem.csv", "r,y,ur,uy")?
+        .into_iter()
+        .enumerate()
+    {
         let expect = [
             (row / COLUMN_Y_POINTS) as f64 * COLUMN_RADIUS / (COLUMN_R_POINTS - 1) as f64,
             (row % COLUMN_Y_POINTS) as f64 * COLUMN_HEIGHT / (COLUMN_Y_POINTS - 1) as f64,
