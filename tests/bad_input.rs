@@ -93,6 +93,15 @@ fn bad_scenes_name_the_key() {
             GOOD.replace("[tissue]", "[tissue]\nneighbours = 0"),
             "tissue.neighbours",
         ),
+        // One neighbour used to pass: the body fell apart without a warning.
+        (
+            GOOD.replace("[tissue]", "[tissue]\nneighbours = 1"),
+            "tissue.neighbours",
+        ),
+        (
+            GOOD.replace("[tissue]", "[tissue]\nneighbours = 5"),
+            "tissue.neighbours",
+        ),
         (
             GOOD.replace("[tissue]", "[tissue]\ndensity = nan"),
             "tissue.density",

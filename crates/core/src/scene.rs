@@ -132,6 +132,13 @@ pub enum NodeMasses {
 fn default_density() -> f64 {
     1000.0
 }
+/// Fewest neighbours per node a scene may ask for. With K nearest neighbours a body of n
+/// nodes has at least `K n / 2` pairs; a 3D framework needs `3n - 6` bars to be rigid
+/// (Maxwell's count), so K below 6 leaves every spring network floppy and gives the
+/// continuum models moment matrices that are singular at the surface. `neighbours = 1`
+/// used to be accepted, and the body fell apart without a word.
+pub const MIN_NEIGHBOURS: usize = 6;
+
 fn default_neighbours() -> usize {
     18
 }
@@ -1207,10 +1214,14 @@ impl Scene {
     pub fn validate(&self) -> Result<(), SceneError> {
         let t = &self.tissue;
         positive_finite("tissue.density", t.density)?;
-        if !(1..=64).contains(&t.neighbours) {
+        if !(MIN_NEIGHBOURS..=64).contains(&t.neighbours) {
             return Err(SceneError::invalid(
                 "tissue.neighbours",
-                format!("must be between 1 and 64, got {}", t.neighbours),
+                format!(
+                    "must be between {MIN_NEIGHBOURS} and 64, got {} (fewer neighbours cannot \
+                     hold a 3D body together)",
+                    t.neighbours
+                ),
             ));
         }
         if let WeightKernel::Poly6 { support } = t.weight {
