@@ -38,6 +38,7 @@ import numpy as np
 import scipy
 import scipy.sparse.linalg as spla
 import skfem
+from richardson import richardson
 from skfem import (Basis, BilinearForm, ElementTriP2, ElementVector, LinearForm, MeshTri,
                    asm)
 
@@ -158,24 +159,6 @@ def gmsh_check(size):
     u[free] = ml.solve(f[free], tol=1e-11, accel="cg", maxiter=1000)
     volume = asm(LinearForm(lambda v, w: v), Basis(mesh, ElementTetP2())).sum()
     return (f @ u) / (RHO * G * volume), K.shape[0], volume / (np.pi * R * R * H) - 1
-
-
-def richardson(h, s):
-    (h1, h2, h3), (f1, f2, f3) = h[-3:], s[-3:]
-
-    def g(p):
-        return (f1 - f2) / (f2 - f3) - (h1**p - h2**p) / (h2**p - h3**p)
-
-    lo, hi = 0.05, 6.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if np.sign(g(mid)) == np.sign(g(lo)):
-            lo = mid
-        else:
-            hi = mid
-    p = 0.5 * (lo + hi)
-    c = (f2 - f3) / (h2**p - h3**p)
-    return p, f3 - c * h3**p
 
 
 def main():

@@ -30,6 +30,7 @@ import pyamg
 import scipy
 import scipy.sparse.linalg as spla
 import skfem
+from richardson import richardson
 from skfem import Basis, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
@@ -107,20 +108,7 @@ def main():
     h = np.array([SIDE / r[0] for r in rows])
     f = np.array([r[2] for r in rows])
     if len(rows) >= 3:
-        (h1, h2, h3), (f1, f2, f3) = h[-3:], f[-3:]
-        # f = F + C h^p through the last three levels (solve for p by bisection).
-        def g(p):
-            return (f1 - f2) / (f2 - f3) - (h1**p - h2**p) / (h2**p - h3**p)
-        lo, hi = 0.05, 4.0
-        for _ in range(100):
-            mid = 0.5 * (lo + hi)
-            if np.sign(g(mid)) == np.sign(g(lo)):
-                lo = mid
-            else:
-                hi = mid
-        p = 0.5 * (lo + hi)
-        c = (f2 - f3) / (h2**p - h3**p)
-        f_inf = f3 - c * h3**p
+        p, f_inf = richardson(h, f)
     else:
         p, f_inf = float("nan"), f[-1]
     np.savetxt(root / "reference/indentation_fem.csv", grid, delimiter=",", fmt="%.6e",

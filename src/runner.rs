@@ -79,7 +79,8 @@ pub struct RunOptions {
     /// Write output files (CSV and surface frames); off for benchmarks.
     pub write_files: bool,
     /// When set (from a signal handler or another thread), the run stops at the next step
-    /// boundary with [`RunError::Interrupted`]; it is looked at every 16 steps.
+    /// boundary with [`RunError::Interrupted`]; it is looked at every 16 steps, or after
+    /// more steps when 16 take less than 50 ms.
     pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
@@ -216,8 +217,12 @@ fn metrics(
     m
 }
 
-/// Steps between two looks at [`RunOptions::stop`] (a frame may hold thousands).
+/// Steps between the first two looks at [`RunOptions::stop`] (a frame may hold
+/// thousands); the stretch doubles while a stretch takes less than [`STOP_CHECK_SECONDS`],
+/// so that fast scenes are not cut into small batches (a GPU submits once per batch).
 const STOP_CHECK_STEPS: u64 = 16;
+/// Wall time a stretch of steps between two looks at [`RunOptions::stop`] aims below.
+const STOP_CHECK_SECONDS: f64 = 0.05;
 
 /// The open output files of a run.
 struct Outputs {
@@ -371,6 +376,7 @@ pub fn run_scene(
     let mut frames = Vec::new();
     let mut step_time = Duration::ZERO;
     let mut done = 0u64;
+    let mut stretch = STOP_CHECK_STEPS;
     let mut run = || -> Result<(), RunError> {
         loop {
             let n = sim.backend().n_active();
@@ -404,10 +410,14 @@ pub fn run_scene(
                         out_dir: options.write_files.then(|| options.out_dir.clone()),
                     });
                 }
-                let piece = STOP_CHECK_STEPS.min(chunk - stepped);
+                let piece = stretch.min(chunk - stepped);
+                let t = Instant::now();
                 if let Err(e) = sim.step_n(piece) {
                     done += stepped;
                     return Err(e.into());
+                }
+                if piece == stretch && t.elapsed().as_secs_f64() < 0.5 * STOP_CHECK_SECONDS {
+                    stretch *= 2;
                 }
                 stepped += piece;
             }
