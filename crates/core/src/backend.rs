@@ -41,8 +41,10 @@ pub trait Backend: Send {
             self.integrate();
         }
     }
-    /// Steps run since creation.
+    /// Steps run since creation (or the count [`Backend::set_steps_taken`] restored).
     fn steps_taken(&self) -> u64;
+    /// Sets the step counter (a simulation restored from a checkpoint continues its count).
+    fn set_steps_taken(&mut self, steps: u64);
     /// Blocks until all submitted work is done (a no-op on the CPU, where [`Backend::step`]
     /// returns when the work is done; a GPU backend only queues it). Call it before
     /// stopping a clock.
@@ -89,6 +91,15 @@ pub trait Backend: Send {
         array: &str,
         offset: usize,
         data: &[u8],
+    ) -> Result<(), SimError>;
+    /// Copies `out.len()` bytes at byte `offset` of the model's shape information array
+    /// `array` into `out` (checkpoints read the per-step arrays, such as the warm-start
+    /// rotations, this way).
+    fn read_shape_bytes(
+        &mut self,
+        array: &str,
+        offset: usize,
+        out: &mut [u8],
     ) -> Result<(), SimError>;
     /// Reads the positions and velocities of all active nodes and returns an error naming
     /// the first non-finite one ([`check_bounded`] without a speed bound).

@@ -333,6 +333,10 @@ impl Backend for CpuBackend {
         self.steps
     }
 
+    fn set_steps_taken(&mut self, steps: u64) {
+        self.steps = steps;
+    }
+
     fn read(
         &mut self,
         field: NodeField,
@@ -391,6 +395,21 @@ impl Backend for CpuBackend {
         )?;
         if let Some((_, bytes)) = target {
             bytes[offset..offset + data.len()].copy_from_slice(data);
+        }
+        Ok(())
+    }
+
+    fn read_shape_bytes(
+        &mut self,
+        array: &str,
+        offset: usize,
+        out: &mut [u8],
+    ) -> Result<(), SimError> {
+        let arrays = self.tissue.shape.bytes();
+        let source = arrays.iter().find(|(n, _)| *n == array);
+        check_shape_write(array, offset, out.len(), source.map(|(_, b)| b.len()))?;
+        if let Some((_, bytes)) = source {
+            out.copy_from_slice(&bytes[offset..offset + out.len()]);
         }
         Ok(())
     }

@@ -304,11 +304,25 @@ impl GpuBackend {
         runs: &[(usize, usize)],
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
-        let total: usize = runs.iter().map(|r| r.1).sum();
-        if total == 0 {
+        let buffer = self.field(field);
+        let copies: Vec<_> = runs
+            .iter()
+            .map(|&(first, count)| (buffer, (first * 16) as u64, (count * 16) as u64))
+            .collect();
+        self.copy_out(&copies, bytemuck::cast_slice_mut(out))
+    }
+
+    /// Copies `(buffer, byte offset, bytes)` pieces back to back into `out` through the
+    /// readback buffer, in one submit and one mapping (the pieces must fit in it).
+    fn copy_out(
+        &self,
+        copies: &[(&wgpu::Buffer, u64, u64)],
+        out: &mut [u8],
+    ) -> Result<(), SimError> {
+        let bytes: u64 = copies.iter().map(|c| c.2).sum();
+        if bytes == 0 {
             return Ok(());
         }
-        let bytes = (total * 16) as u64;
         let mut encoder = self
             .ctx
             .device
@@ -316,15 +330,8 @@ impl GpuBackend {
                 label: Some("read"),
             });
         let mut at = 0u64;
-        for &(first, count) in runs {
-            let len = (count * 16) as u64;
-            encoder.copy_buffer_to_buffer(
-                self.field(field),
-                (first * 16) as u64,
-                &self.buffers.readback,
-                at,
-                len,
-            );
+        for &(buffer, offset, len) in copies {
+            encoder.copy_buffer_to_buffer(buffer, offset, &self.buffers.readback, at, len);
             at += len;
         }
         self.ctx.queue.submit([encoder.finish()]);
@@ -346,7 +353,7 @@ impl GpuBackend {
             let view = slice.get_mapped_range().map_err(|e| SimError::Device {
                 message: format!("reading the readback buffer failed: {e}"),
             })?;
-            out.copy_from_slice(bytemuck::cast_slice(&view));
+            out.copy_from_slice(&view);
         }
         self.buffers.readback.unmap();
         Ok(())
@@ -534,6 +541,10 @@ impl Backend for GpuBackend {
         self.steps
     }
 
+    fn set_steps_taken(&mut self, steps: u64) {
+        self.steps = steps;
+    }
+
     fn finish(&mut self) {
         self.wait();
     }
@@ -622,6 +633,32 @@ impl Backend for GpuBackend {
             if !data.is_empty() {
                 self.ctx.queue.write_buffer(buffer, offset as u64, data);
             }
+        }
+        Ok(())
+    }
+
+    /// Reads in pieces of the readback buffer's size.
+    fn read_shape_bytes(
+        &mut self,
+        array: &str,
+        offset: usize,
+        out: &mut [u8],
+    ) -> Result<(), SimError> {
+        let source = self.buffers.model.iter().find(|(n, _)| *n == array);
+        check_shape_write(
+            array,
+            offset,
+            out.len(),
+            source.map(|(_, b)| b.size() as usize),
+        )?;
+        let Some((_, buffer)) = source else {
+            return Ok(());
+        };
+        // A multiple of 4, as copies must be (the buffer holds at least one node, 16 bytes).
+        let piece = (self.buffers.readback.size() as usize) & !3;
+        for (k, chunk) in out.chunks_mut(piece).enumerate() {
+            let at = (offset + k * piece) as u64;
+            self.copy_out(&[(buffer, at, chunk.len() as u64)], chunk)?;
         }
         Ok(())
     }

@@ -58,7 +58,7 @@
 use serde::Deserialize;
 
 /// Friction state of one needle node.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum FrictionState {
     /// Moves with the needle (static friction).
     #[default]

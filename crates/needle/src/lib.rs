@@ -6,7 +6,8 @@
 //! states, the 1-to-3 triangle split and the cone angle ([`puncture`]), node addition and
 //! exact removal ([`node_editor`]), stick-slip friction ([`friction`]), and the
 //! [`Simulation`] that drives any [`needlesim_core::Backend`] through them and records the
-//! needle force of every step ([`simulation`]).
+//! needle force of every step ([`simulation`]), and checkpoints of its whole state
+//! ([`checkpoint`]).
 //!
 //! ```no_run
 //! use needlesim_core::{CpuBackend, Scene, Threading};
@@ -24,6 +25,7 @@
 
 #![warn(missing_docs)]
 
+pub mod checkpoint;
 pub mod config;
 pub mod friction;
 pub mod needle;
@@ -33,6 +35,7 @@ pub mod script;
 pub mod simulation;
 pub mod surface_query;
 
+pub use checkpoint::{Checkpoint, CheckpointError, SceneText};
 pub use config::NeedleConfig;
 pub use friction::{FrictionModel, FrictionState, PaperFriction, PerLengthFriction};
 pub use needle::{Needle, NeedleError};

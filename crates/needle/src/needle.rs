@@ -23,7 +23,7 @@ pub enum NeedleError {
 }
 
 /// A rigid straight needle.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Needle {
     base: [f64; 3],
     direction: [f64; 3],

@@ -32,6 +32,7 @@ use needlesim_core::models::ShapeInfo;
 use needlesim_core::neighbours::{kernel_length, kernel_weight, Neighbours};
 use needlesim_core::scene::WeightKernel;
 use needlesim_core::{Backend, NodeField, SimError, Tissue};
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 /// Why a node cannot be added or removed.
@@ -64,7 +65,7 @@ pub enum EditError {
 }
 
 /// One overwritten piece of state.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 enum Undo {
     /// A neighbour row as it was.
     Row {
@@ -72,9 +73,9 @@ enum Undo {
         index: Vec<u32>,
         weight: Vec<f32>,
     },
-    /// Shape bytes as they were.
+    /// Shape bytes as they were (`array`: position in [`ShapeInfo::bytes`]).
     Shape {
-        array: &'static str,
+        array: usize,
         offset: usize,
         bytes: Vec<u8>,
     },
@@ -87,7 +88,7 @@ enum Undo {
 }
 
 /// What one addition changed.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 struct Addition {
     node: u32,
     undo: Vec<Undo>,
@@ -492,8 +493,10 @@ impl NodeEditor {
                     offset,
                     bytes,
                 } => {
-                    self.shape_bytes(array)[*offset..*offset + bytes.len()].copy_from_slice(bytes);
-                    backend.write_shape_bytes(array, *offset, bytes)?;
+                    let mut arrays = self.shape.bytes_mut();
+                    let (name, target) = &mut arrays[*array];
+                    target[*offset..*offset + bytes.len()].copy_from_slice(bytes);
+                    backend.write_shape_bytes(name, *offset, bytes)?;
                 }
                 Undo::Slot {
                     node,
@@ -525,12 +528,13 @@ impl NodeEditor {
         });
     }
 
-    fn shape_bytes(&mut self, array: &str) -> &mut [u8] {
+    fn shape_bytes(&mut self, array: &str) -> (usize, &mut [u8]) {
         self.shape
             .bytes_mut()
             .into_iter()
-            .find(|(n, _)| *n == array)
-            .map(|(_, b)| b)
+            .enumerate()
+            .find(|(_, (n, _))| *n == array)
+            .map(|(k, (_, b))| (k, b))
             .expect("array listed by ShapeInfo::node_rows")
     }
 
@@ -542,14 +546,120 @@ impl NodeEditor {
         bytes: &[u8],
         undo: &mut Vec<Undo>,
     ) -> Result<(), EditError> {
-        let target = &mut self.shape_bytes(array)[offset..offset + bytes.len()];
+        let (k, target) = self.shape_bytes(array);
+        let target = &mut target[offset..offset + bytes.len()];
         undo.push(Undo::Shape {
-            array,
+            array: k,
             offset,
             bytes: target.to_vec(),
         });
         target.copy_from_slice(bytes);
         backend.write_shape_bytes(array, offset, bytes)?;
+        Ok(())
+    }
+}
+
+/// The editor's changing state (the rows, shape information, rest positions and undo
+/// log), as a checkpoint stores it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct EditorSnapshot {
+    index: Vec<u32>,
+    weight: Vec<f32>,
+    shape: Vec<Vec<u8>>,
+    rest: Vec<Vec4>,
+    dk: Vec<f64>,
+    n_active: usize,
+    log: Vec<Addition>,
+}
+
+impl EditorSnapshot {
+    /// Nodes active in the snapshot.
+    pub(crate) fn n_active(&self) -> usize {
+        self.n_active
+    }
+}
+
+impl NodeEditor {
+    /// The changing state.
+    pub(crate) fn snapshot(&self) -> EditorSnapshot {
+        EditorSnapshot {
+            index: self.nb.index.clone(),
+            weight: self.nb.weight.clone(),
+            shape: self
+                .shape
+                .bytes()
+                .into_iter()
+                .map(|(_, b)| b.to_vec())
+                .collect(),
+            rest: self.rest.clone(),
+            dk: self.dk.clone(),
+            n_active: self.n_active,
+            log: self.log.clone(),
+        }
+    }
+
+    /// Puts back a state from [`NodeEditor::snapshot`] of an editor built from the same
+    /// tissue; `Err` names the first array whose size differs.
+    pub(crate) fn restore(&mut self, s: EditorSnapshot) -> Result<(), &'static str> {
+        let sizes = self.shape.bytes().into_iter().map(|(n, b)| (n, b.len()));
+        if s.shape.len() != self.shape.bytes().len() {
+            return Err("shape arrays");
+        }
+        for ((name, len), saved) in sizes.zip(&s.shape) {
+            if saved.len() != len {
+                return Err(name);
+            }
+        }
+        let capacity = self.rest.len();
+        let rows = capacity * self.nb.k;
+        let bad_undo = s.log.iter().flat_map(|a| &a.undo).any(|u| match u {
+            Undo::Row {
+                node,
+                index,
+                weight,
+            } => {
+                *node as usize >= capacity
+                    || index.len() != self.nb.k
+                    || weight.len() != self.nb.k
+                    || index.iter().any(|&j| j as usize >= capacity)
+            }
+            Undo::Shape {
+                array,
+                offset,
+                bytes,
+            } => s
+                .shape
+                .get(*array)
+                .is_none_or(|a| offset.checked_add(bytes.len()).is_none_or(|e| e > a.len())),
+            Undo::Slot { node, .. } => *node as usize >= capacity,
+        });
+        if s.index.len() != rows
+            || s.weight.len() != rows
+            || s.index.iter().any(|&j| j as usize >= capacity)
+        {
+            return Err("neighbour rows");
+        }
+        if s.rest.len() != capacity || s.dk.len() != capacity {
+            return Err("rest positions");
+        }
+        if s.n_active < self.n_mesh
+            || s.n_active > capacity
+            || s.log.len() != s.n_active - self.n_mesh
+        {
+            return Err("active nodes");
+        }
+        if bad_undo || s.log.iter().any(|a| a.node as usize >= capacity) {
+            return Err("undo log");
+        }
+        self.nb.index = s.index;
+        self.nb.weight = s.weight;
+        for ((_, target), saved) in self.shape.bytes_mut().into_iter().zip(&s.shape) {
+            target.copy_from_slice(saved);
+        }
+        self.rest = s.rest;
+        self.dk = s.dk;
+        self.n_active = s.n_active;
+        self.log = s.log;
         Ok(())
     }
 }

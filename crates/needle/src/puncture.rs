@@ -11,7 +11,7 @@
 use serde::Deserialize;
 
 /// Where the needle tip is relative to the tissue.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum PunctureState {
     /// Not in contact.
     #[default]
@@ -107,7 +107,7 @@ pub fn mean_cone_angle(surface_node: [f64; 3], corners: [[f64; 3]; 3], direction
 }
 
 /// What a split changed, to undo it exactly.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Split {
     /// The split triangle's index (now holding the first of the three).
     pub triangle: usize,

@@ -48,6 +48,7 @@
 //! A needle node that the tissue pushes ahead of an advancing tip (the shaft no longer
 //! holding the tissue it is in) stops the run with [`SimulationError::NodesLost`].
 
+use crate::checkpoint::{BackendSnapshot, Checkpoint, CheckpointError};
 use crate::config::NeedleConfig;
 use crate::friction::{
     grip_from_modulus, paper_dynamic_friction, paper_next_state, per_length_step, split, AxialStep,
@@ -65,6 +66,7 @@ use needlesim_core::integrator::StepParams;
 use needlesim_core::math::Vec4;
 use needlesim_core::scene::Material;
 use needlesim_core::{geometry, Backend, NodeField, Scene, SceneError, SimError, Tissue};
+use std::path::PathBuf;
 use thiserror::Error;
 
 /// Why a needle simulation cannot be built or stepped.
@@ -98,6 +100,9 @@ pub enum SimulationError {
         /// Slots of the backend given.
         got: usize,
     },
+    /// A checkpoint cannot be written, read or restored.
+    #[error(transparent)]
+    Checkpoint(#[from] crate::checkpoint::CheckpointError),
     /// The needle stopped holding the tissue it is in: a needle node was pushed ahead of
     /// the advancing tip (for example by a friction law that drives nodes faster than the
     /// needle), which would let the needle pass through the tissue unnoticed.
@@ -119,7 +124,7 @@ pub enum SimulationError {
 }
 
 /// Role of a needle node.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum NodeRole {
     /// Where the tip first touched the surface.
     Surface,
@@ -132,7 +137,7 @@ pub enum NodeRole {
 }
 
 /// A needle node.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NeedleNode {
     /// Node index in the backend.
     pub index: u32,
@@ -150,7 +155,7 @@ pub struct NeedleNode {
 }
 
 /// The force the tissue exerts on the needle in one step.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct NeedleForce {
     /// Total force on the needle, N.
     pub total: [f64; 3],
@@ -162,7 +167,7 @@ pub struct NeedleForce {
 }
 
 /// One step of the needle's record.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NeedleSample {
     /// Steps taken.
     pub step: u64,
@@ -184,7 +189,7 @@ pub struct NeedleSample {
 
 /// Where the needle is in its path through the body (the public [`PunctureState`] is the
 /// tip's view of it).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 enum Phase {
     /// No contact.
     Outside,
@@ -230,9 +235,24 @@ pub struct Prepared {
     grip: f64,
     rest: Vec<[f64; 3]>,
     guard: (f64, u64),
+    fingerprint: Vec<(String, u64)>,
 }
 
 impl Prepared {
+    /// Starts the simulation on `backend` (built from [`Prepared::tissue`]) in the state of
+    /// `checkpoint`, taken from a simulation of the same scene; a checkpoint of another
+    /// scene is [`CheckpointError::SceneMismatch`]. On the CPU backends the run then
+    /// continues bitwise as the checkpointed one would have.
+    pub fn resume(
+        self,
+        backend: Box<dyn Backend>,
+        checkpoint: Checkpoint,
+    ) -> Result<Simulation, SimulationError> {
+        let mut sim = self.start(backend)?;
+        sim.restore(checkpoint)?;
+        Ok(sim)
+    }
+
     /// Starts the simulation on `backend`, which must have been built from
     /// [`Prepared::tissue`].
     pub fn start(self, backend: Box<dyn Backend>) -> Result<Simulation, SimulationError> {
@@ -301,6 +321,7 @@ impl Prepared {
             max_speed: self.guard.0,
             check_every: self.guard.1,
             boundary: self.tissue.boundary.clone(),
+            fingerprint: self.fingerprint,
         };
         // Prescribed displacements hold from the start (a ramp starts at zero).
         sim.boundary.project(sim.backend.as_mut(), 0.0)?;
@@ -347,6 +368,32 @@ pub struct Simulation {
     max_speed: f64,
     check_every: u64,
     boundary: Boundary,
+    fingerprint: Vec<(String, u64)>,
+}
+
+/// The simulation's own changing state, as a checkpoint stores it.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct SimSnapshot {
+    needle: Option<Needle>,
+    prev: Option<Needle>,
+    scripted: bool,
+    triangles: Vec<[u32; 3]>,
+    grid: TriangleGrid,
+    splits: Vec<Split>,
+    phase: Phase,
+    nodes: Vec<NeedleNode>,
+    velocities: Vec<Vec4>,
+    positions: Vec<Vec4>,
+    tip_placed: [f64; 3],
+    swept_from: [f64; 3],
+    entry: Option<[f64; 3]>,
+    cut_depth: f64,
+    pinned_axial: f64,
+    pub(crate) time: f64,
+    pub(crate) steps: u64,
+    force: NeedleForce,
+    history: Vec<NeedleSample>,
+    record: bool,
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -435,7 +482,9 @@ impl Simulation {
         let extra = config.as_ref().map_or(0, |c| c.node_slots(spacing));
         let tissue = Tissue::from_cloud(scene, cloud, extra)?;
         let editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
+        let fingerprint = crate::checkpoint::fingerprint(scene, &tissue.state.positions);
         Ok(Prepared {
+            fingerprint,
             tissue,
             editor,
             config,
@@ -444,6 +493,142 @@ impl Simulation {
             rest,
             guard: (scene.physics.max_speed, scene.physics.check_every),
         })
+    }
+
+    /// The whole state as a [`Checkpoint`] (it reads every node and shape array back from
+    /// the backend). Attach the scene's text ([`Checkpoint::scene`]) to make the file
+    /// enough on its own.
+    pub fn checkpoint(&mut self) -> Result<Checkpoint, SimulationError> {
+        let b = self.backend.as_mut();
+        let cap = b.capacity();
+        let mut field = |f| -> Result<Vec<Vec4>, SimError> {
+            let mut out = vec![[0.0f32; 4]; cap];
+            b.read(f, 0..cap, &mut out)?;
+            Ok(out)
+        };
+        let (positions, velocities, forces) = (
+            field(NodeField::Position)?,
+            field(NodeField::Velocity)?,
+            field(NodeField::Force)?,
+        );
+        let mut shape = Vec::new();
+        for (name, bytes) in self.editor.shape().bytes() {
+            let mut out = vec![0u8; bytes.len()];
+            b.read_shape_bytes(name, 0, &mut out)?;
+            shape.push(out);
+        }
+        Ok(Checkpoint {
+            scene: None,
+            fingerprint: self.fingerprint.clone(),
+            backend: BackendSnapshot {
+                n_active: b.n_active(),
+                steps: b.steps_taken(),
+                positions,
+                velocities,
+                forces,
+                shape,
+            },
+            editor: self.editor.snapshot(),
+            sim: SimSnapshot {
+                needle: self.needle,
+                prev: self.prev,
+                scripted: self.script.is_some(),
+                triangles: self.triangles.clone(),
+                grid: self.grid.clone(),
+                splits: self.splits.clone(),
+                phase: self.phase,
+                nodes: self.nodes.clone(),
+                velocities: self.velocities.clone(),
+                positions: self.positions.clone(),
+                tip_placed: self.tip_placed,
+                swept_from: self.swept_from,
+                entry: self.entry,
+                cut_depth: self.cut_depth,
+                pinned_axial: self.pinned_axial,
+                time: self.time,
+                steps: self.steps,
+                force: self.force,
+                history: self.history.clone(),
+                record: self.record,
+            },
+        })
+    }
+
+    /// Puts a checkpoint's state into this freshly started simulation.
+    fn restore(&mut self, c: Checkpoint) -> Result<(), SimulationError> {
+        let corrupt = |reason: String| CheckpointError::Corrupt {
+            path: PathBuf::new(),
+            reason,
+        };
+        for (part, hash) in &c.fingerprint {
+            let same = self.fingerprint.iter().any(|(p, h)| p == part && h == hash);
+            if !same {
+                return Err(CheckpointError::SceneMismatch { part: part.clone() }.into());
+            }
+        }
+        if c.fingerprint.len() != self.fingerprint.len() {
+            return Err(corrupt("the scene fingerprint has another length".into()).into());
+        }
+        let cap = self.backend.capacity();
+        let editor_n_active = c.editor_n_active();
+        let bs = c.backend;
+        if [&bs.positions, &bs.velocities, &bs.forces]
+            .iter()
+            .any(|a| a.len() != cap)
+            || bs.n_active > cap
+            || bs.n_active != editor_n_active
+        {
+            return Err(corrupt(format!("node arrays do not fit {cap} node slots")).into());
+        }
+        let sim = c.sim;
+        let bad_node = |i: u32| i as usize >= bs.n_active;
+        if sim.nodes.iter().any(|n| bad_node(n.index))
+            || sim.triangles.iter().flatten().any(|&i| bad_node(i))
+            || sim.splits.len() > 2
+        {
+            return Err(corrupt("needle nodes or triangles name inactive nodes".into()).into());
+        }
+        self.editor
+            .restore(c.editor)
+            .map_err(|what| corrupt(format!("the {what} do not fit this tissue")))?;
+        let b = self.backend.as_mut();
+        b.write(NodeField::Position, 0, &bs.positions)?;
+        b.write(NodeField::Velocity, 0, &bs.velocities)?;
+        b.write(NodeField::Force, 0, &bs.forces)?;
+        let nb = self.editor.neighbours();
+        b.write_neighbour_rows(0, &nb.index, &nb.weight)?;
+        let names: Vec<&str> = self.editor.shape().bytes().iter().map(|a| a.0).collect();
+        if names.len() != bs.shape.len() {
+            return Err(corrupt("shape arrays differ".into()).into());
+        }
+        for (name, bytes) in names.into_iter().zip(&bs.shape) {
+            b.write_shape_bytes(name, 0, bytes)?;
+        }
+        b.set_n_active(bs.n_active)?;
+        b.set_steps_taken(bs.steps);
+        if !sim.scripted {
+            self.script = None;
+        }
+        self.needle = sim.needle;
+        self.prev = sim.prev;
+        self.triangles = sim.triangles;
+        self.grid = sim.grid;
+        self.splits = sim.splits;
+        self.phase = sim.phase;
+        self.nodes = sim.nodes;
+        self.velocities = sim.velocities;
+        self.positions = sim.positions;
+        self.tip_placed = sim.tip_placed;
+        self.swept_from = sim.swept_from;
+        self.entry = sim.entry;
+        self.cut_depth = sim.cut_depth;
+        self.pinned_axial = sim.pinned_axial;
+        self.time = sim.time;
+        self.steps = sim.steps;
+        self.force = sim.force;
+        self.history = sim.history;
+        self.record = sim.record;
+        Ok(())
     }
 
     /// The backend.

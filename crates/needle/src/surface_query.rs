@@ -73,7 +73,7 @@ pub fn segment_triangle(
 }
 
 /// Uniform grid of inflated triangle bounding boxes.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TriangleGrid {
     origin: [f64; 3],
     cell: f64,

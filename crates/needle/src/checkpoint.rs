@@ -1,0 +1,293 @@
+//! Checkpoints: the whole state of a [`Simulation`](crate::Simulation) in one versioned
+//! file. A run restored from one continues bitwise as if it had not stopped on the CPU
+//! backends (the GPU backend restores the same bytes; its own rounding differs from the
+//! CPU's, not from itself).
+//!
+//! The state: every node array of the backend (all slots: an inactive slot keeps the bytes
+//! the undo log puts back when a node is removed), every shape array (static ones and the
+//! per-step ones such as warm-start rotations), the node editor (neighbour rows, shape
+//! mirror, rest positions, undo log), the needle (pose, last pose, whether its script still
+//! drives it), the puncture phase, the needle nodes and their friction states, the split
+//! surface triangles and their grid, the clock and the history.
+//!
+//! File layout: the magic `NEEDLESIM-CHECKPOINT\n`, the format version (u32, little
+//! endian), the payload length (u64), the payload's FNV-1a 64-bit hash (u64), then the
+//! payload in the postcard encoding. Another version, another magic, a short or altered file
+//! are typed errors ([`CheckpointError`]).
+//!
+//! A checkpoint does not rebuild a tissue: it is restored onto one prepared from the same
+//! scene ([`Prepared::resume`](crate::Prepared::resume)), which a fingerprint of the scene
+//! parts that shape the state checks (the run settings, the backend and the name may
+//! change). It can carry the scene's TOML text ([`Checkpoint::scene`]) so that a file alone
+//! is enough to resume (the Python `Simulation.load`).
+
+use crate::node_editor::EditorSnapshot;
+use crate::simulation::SimSnapshot;
+use needlesim_core::math::Vec4;
+use needlesim_core::Scene;
+use serde::{Deserialize, Serialize};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// First bytes of a checkpoint file.
+pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
+/// Format version this build writes and reads. Raised whenever the payload changes.
+pub const FORMAT_VERSION: u32 = 1;
+const HEADER: usize = MAGIC.len() + 4 + 8 + 8;
+
+/// Why a checkpoint cannot be written, read or restored.
+#[derive(Debug, Error)]
+pub enum CheckpointError {
+    /// The file cannot be read or written.
+    #[error("checkpoint {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The file does not start with [`MAGIC`].
+    #[error("{path} is not a needlesim checkpoint")]
+    NotACheckpoint {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file was written by a build with another format version.
+    #[error(
+        "checkpoint {path} has format version {found}; this build reads version {expected} \
+         (resume with the needlesim version that wrote it, or start the run again)"
+    )]
+    Version {
+        /// The file.
+        path: PathBuf,
+        /// Version in the file.
+        found: u32,
+        /// Version this build reads.
+        expected: u32,
+    },
+    /// The file is shorter than its header says (an interrupted copy or write).
+    #[error("checkpoint {path} is truncated: {got} of {expected} bytes")]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// Bytes present.
+        got: u64,
+        /// Bytes the header announces.
+        expected: u64,
+    },
+    /// The payload does not match its hash or does not decode.
+    #[error("checkpoint {path} is corrupt: {reason}")]
+    Corrupt {
+        /// The file (empty when restored from memory).
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The checkpoint was taken with a scene that differs from the one given.
+    #[error(
+        "the checkpoint was taken with another scene: its `{part}` differs (resume with the \
+         scene the checkpoint was written from; only `run`, `backend` and `name` may change)"
+    )]
+    SceneMismatch {
+        /// The scene part that differs (`tissue`, `material`, `needle`, ...).
+        part: String,
+    },
+    /// The checkpoint carries no scene text and none was given.
+    #[error("the checkpoint carries no scene; give the scene it was taken with")]
+    NoScene,
+}
+
+/// The scene a checkpoint can carry: its TOML text and the folder relative paths resolve
+/// against.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SceneText {
+    /// The scene as TOML.
+    pub toml: String,
+    /// The scene file's folder.
+    pub base_dir: PathBuf,
+}
+
+impl SceneText {
+    /// Parses and validates the scene.
+    pub fn scene(&self) -> Result<Scene, needlesim_core::SceneError> {
+        Scene::from_toml_str(&self.toml, &self.base_dir)
+    }
+}
+
+/// The backend's arrays.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct BackendSnapshot {
+    pub n_active: usize,
+    pub steps: u64,
+    pub positions: Vec<Vec4>,
+    pub velocities: Vec<Vec4>,
+    pub forces: Vec<Vec4>,
+    /// Every shape array, in [`needlesim_core::models::ShapeInfo::bytes`] order.
+    pub shape: Vec<Vec<u8>>,
+}
+
+/// The whole state of a simulation. Take one with
+/// [`Simulation::checkpoint`](crate::Simulation::checkpoint), write it with
+/// [`Checkpoint::write`], read it with [`Checkpoint::read`], restore it with
+/// [`Prepared::resume`](crate::Prepared::resume).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Checkpoint {
+    /// The scene, if the writer attached it (a checkpoint restores onto a tissue prepared
+    /// from the same scene; with it, the file alone is enough).
+    pub scene: Option<SceneText>,
+    pub(crate) fingerprint: Vec<(String, u64)>,
+    pub(crate) backend: BackendSnapshot,
+    pub(crate) editor: EditorSnapshot,
+    pub(crate) sim: SimSnapshot,
+}
+
+impl Checkpoint {
+    /// Active nodes the editor says there are.
+    pub(crate) fn editor_n_active(&self) -> usize {
+        self.editor.n_active()
+    }
+
+    /// Simulated time at the checkpoint, s.
+    pub fn time(&self) -> f64 {
+        self.sim.time
+    }
+
+    /// Steps taken at the checkpoint.
+    pub fn steps(&self) -> u64 {
+        self.sim.steps
+    }
+
+    /// The file's bytes (header and payload).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let payload = postcard::to_stdvec(self).expect("in-memory serialisation cannot fail");
+        let mut out = Vec::with_capacity(HEADER + payload.len());
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        out.extend_from_slice(&fnv1a(&payload).to_le_bytes());
+        out.extend_from_slice(&payload);
+        out
+    }
+
+    /// Decodes a file's bytes; `path` names the file in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Checkpoint, CheckpointError> {
+        let path = path.to_path_buf();
+        if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+            return Err(CheckpointError::NotACheckpoint { path });
+        }
+        if bytes.len() < HEADER {
+            return Err(CheckpointError::Truncated {
+                path,
+                got: bytes.len() as u64,
+                expected: HEADER as u64,
+            });
+        }
+        let word = |at: usize, n: usize| {
+            let mut b = [0u8; 8];
+            b[..n].copy_from_slice(&bytes[at..at + n]);
+            u64::from_le_bytes(b)
+        };
+        let version = word(MAGIC.len(), 4) as u32;
+        if version != FORMAT_VERSION {
+            return Err(CheckpointError::Version {
+                path,
+                found: version,
+                expected: FORMAT_VERSION,
+            });
+        }
+        let len = word(MAGIC.len() + 4, 8);
+        let hash = word(MAGIC.len() + 12, 8);
+        let expected = (HEADER as u64).saturating_add(len);
+        if (bytes.len() as u64) < expected {
+            return Err(CheckpointError::Truncated {
+                path,
+                got: bytes.len() as u64,
+                expected,
+            });
+        }
+        if (bytes.len() as u64) > expected {
+            return Err(CheckpointError::Corrupt {
+                path,
+                reason: format!("{} bytes past the payload", bytes.len() as u64 - expected),
+            });
+        }
+        let payload = &bytes[HEADER..];
+        if fnv1a(payload) != hash {
+            return Err(CheckpointError::Corrupt {
+                path,
+                reason: "the payload does not match its hash".into(),
+            });
+        }
+        postcard::from_bytes(payload).map_err(|e| CheckpointError::Corrupt {
+            path,
+            reason: e.to_string(),
+        })
+    }
+
+    /// Writes the checkpoint to `path` atomically (a `.partial` file renamed over it), so
+    /// that an interruption leaves the previous checkpoint intact.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<(), CheckpointError> {
+        let path = path.as_ref();
+        let io = |source| CheckpointError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".partial");
+        let tmp = PathBuf::from(tmp);
+        {
+            let mut f = std::fs::File::create(&tmp).map_err(io)?;
+            f.write_all(&self.to_bytes()).map_err(io)?;
+            f.sync_all().map_err(io)?;
+        }
+        std::fs::rename(&tmp, path).map_err(io)
+    }
+
+    /// Reads a checkpoint file.
+    pub fn read(path: impl AsRef<Path>) -> Result<Checkpoint, CheckpointError> {
+        let path = path.as_ref();
+        needlesim_core::scene::check_input_file(path, u64::MAX, "checkpoint").map_err(|e| {
+            CheckpointError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()),
+            }
+        })?;
+        let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Checkpoint::from_bytes(&bytes, path)
+    }
+}
+
+/// FNV-1a, 64 bits: a stable hash (std's hashers may change between Rust releases).
+pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// The scene parts that shape a simulation's state, each hashed: a checkpoint restores only
+/// onto a tissue prepared from a scene with the same parts. `nodes` hashes the built node
+/// positions and inverse masses, so that a changed surface file is caught too.
+pub(crate) fn fingerprint(scene: &Scene, positions: &[Vec4]) -> Vec<(String, u64)> {
+    // Debug output of floats is exact (shortest round-trip form), so equal text is equal
+    // values.
+    let parts: [(&str, String); 8] = [
+        ("tissue", format!("{:?}", scene.tissue)),
+        ("material", format!("{:?}", scene.material)),
+        ("physics", format!("{:?}", scene.physics)),
+        ("fixed", format!("{:?}", scene.fixed)),
+        ("prescribed", format!("{:?}", scene.prescribed)),
+        ("load", format!("{:?}", scene.load)),
+        ("initial", format!("{:?}", scene.initial)),
+        ("needle", format!("{:?}", scene.needle)),
+    ];
+    let mut out: Vec<(String, u64)> = parts
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), fnv1a(v.as_bytes())))
+        .collect();
+    out.push(("nodes".to_string(), fnv1a(bytemuck::cast_slice(positions))));
+    out
+}

@@ -1,0 +1,170 @@
+//! Checkpoints (`needlesim_needle::checkpoint`): a simulation restored from one continues
+//! bitwise as the uninterrupted one, every model, with the needle inserted at the
+//! checkpoint; damaged files, other versions and other scenes are typed errors.
+
+mod common;
+
+use needlesim::needle::{Checkpoint, CheckpointError, PunctureState, Simulation, SimulationError};
+use needlesim::{CpuBackend, NodeField, Scene, Threading};
+use std::path::Path;
+
+const INSERT_EXTRACT: &str = include_str!("../scenes/needle_insert_extract.toml");
+
+/// The insert-extract scene with another `[material]` table body.
+fn scene(material: &str) -> Scene {
+    let (head, rest) = INSERT_EXTRACT.split_once("[material]").unwrap();
+    let tail = &rest[rest.find("\n[physics]").unwrap()..];
+    let text = format!("{head}[material]\n{material}\n{tail}");
+    Scene::from_toml_str(&text, Path::new("scenes")).unwrap()
+}
+
+fn start(scene: &Scene, threading: Threading) -> Simulation {
+    let prep = Simulation::prepare(scene).unwrap();
+    let b = CpuBackend::new(prep.tissue.clone(), threading).unwrap();
+    prep.start(Box::new(b)).unwrap()
+}
+
+fn resume(scene: &Scene, c: Checkpoint) -> Result<Simulation, SimulationError> {
+    let prep = Simulation::prepare(scene).unwrap();
+    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel).unwrap();
+    prep.resume(Box::new(b), c)
+}
+
+/// Everything a run leaves: every slot of the node arrays, the neighbour rows, every shape
+/// array, and the history, as bits.
+fn fingerprint(sim: &mut Simulation) -> (Vec<u32>, Vec<u32>, Vec<u8>, String) {
+    let cap = sim.backend().capacity();
+    let mut bits = Vec::new();
+    for f in [NodeField::Position, NodeField::Velocity, NodeField::Force] {
+        let mut out = vec![[0.0f32; 4]; cap];
+        sim.backend().read(f, 0..cap, &mut out).unwrap();
+        bits.extend(out.iter().flatten().map(|x| x.to_bits()));
+    }
+    let nb = sim.editor().neighbours();
+    let mut rows = nb.index.clone();
+    rows.extend(nb.weight.iter().map(|w| w.to_bits()));
+    let mut shape = Vec::new();
+    let arrays: Vec<(String, usize)> = sim
+        .editor()
+        .shape()
+        .bytes()
+        .iter()
+        .map(|(n, b)| (n.to_string(), b.len()))
+        .collect();
+    for (name, len) in arrays {
+        let mut out = vec![0u8; len];
+        sim.backend().read_shape_bytes(&name, 0, &mut out).unwrap();
+        shape.extend(out);
+    }
+    // Debug output of floats is their shortest exact form: equal text, equal bits.
+    let history = format!("{:?} {:?}", sim.history(), sim.needle_nodes());
+    (bits, rows, shape, history)
+}
+
+/// Steps to the checkpoint (the tip about 2.7 cm in, inside with shaft nodes) and after it
+/// (more insertion, the hold, and 0.3 s of extraction, which removes nodes the checkpoint
+/// holds).
+const BEFORE: u64 = 1_500;
+const AFTER: u64 = 1_300;
+
+#[test]
+fn a_resumed_run_is_bitwise_the_uninterrupted_one_for_every_model() {
+    for (label, material) in common::all_models() {
+        let scene = scene(material);
+        let mut sim = start(&scene, Threading::Parallel);
+        sim.step_n(BEFORE).unwrap();
+        assert!(
+            sim.state() == PunctureState::Inside && sim.needle_nodes().len() >= 3,
+            "{label}: the needle must be inside with shaft nodes at the checkpoint ({:?}, {} nodes)",
+            sim.state(),
+            sim.needle_nodes().len()
+        );
+        let bytes = sim.checkpoint().unwrap().to_bytes();
+        sim.step_n(AFTER).unwrap();
+        let straight = fingerprint(&mut sim);
+
+        let c = Checkpoint::from_bytes(&bytes, Path::new("mem")).unwrap();
+        assert_eq!(c.steps(), BEFORE);
+        let mut resumed = resume(&scene, c).unwrap();
+        assert_eq!(resumed.steps(), BEFORE);
+        resumed.step_n(AFTER).unwrap();
+        let again = fingerprint(&mut resumed);
+        assert!(straight.0 == again.0, "{label}: node arrays differ");
+        assert!(straight.1 == again.1, "{label}: neighbour rows differ");
+        assert!(straight.2 == again.2, "{label}: shape arrays differ");
+        assert!(straight.3 == again.3, "{label}: histories differ");
+        assert_eq!(resumed.steps(), BEFORE + AFTER);
+    }
+}
+
+#[test]
+fn a_checkpoint_round_trips_through_a_file_and_damage_is_a_typed_error() {
+    let scene = scene(common::LINEAR_DEB.1);
+    let mut sim = start(&scene, Threading::Single);
+    sim.step_n(600).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("state.ckpt");
+    sim.checkpoint().unwrap().write(&path).unwrap();
+    let good = std::fs::read(&path).unwrap();
+    let c = Checkpoint::read(&path).unwrap();
+    assert_eq!(c.steps(), 600);
+    assert_eq!(c.to_bytes(), good, "write and read are inverse");
+
+    // Cut short: the header says how long the payload is.
+    std::fs::write(&path, &good[..good.len() - 100]).unwrap();
+    let e = Checkpoint::read(&path).unwrap_err();
+    assert!(
+        matches!(e, CheckpointError::Truncated { .. }),
+        "truncated: {e}"
+    );
+    assert!(e.to_string().contains("truncated"), "{e}");
+    // Cut inside the header.
+    std::fs::write(&path, &good[..30]).unwrap();
+    assert!(matches!(
+        Checkpoint::read(&path).unwrap_err(),
+        CheckpointError::Truncated { .. }
+    ));
+    // Another format version.
+    let mut other = good.clone();
+    other[needlesim::needle::checkpoint::MAGIC.len()] ^= 0x7f;
+    std::fs::write(&path, &other).unwrap();
+    let e = Checkpoint::read(&path).unwrap_err();
+    assert!(matches!(e, CheckpointError::Version { .. }), "{e}");
+    assert!(e.to_string().contains("format version"), "{e}");
+    // One flipped bit in the payload.
+    let mut flipped = good.clone();
+    let at = good.len() / 2;
+    flipped[at] ^= 1;
+    std::fs::write(&path, &flipped).unwrap();
+    let e = Checkpoint::read(&path).unwrap_err();
+    assert!(matches!(e, CheckpointError::Corrupt { .. }), "{e}");
+    // Not a checkpoint at all.
+    std::fs::write(&path, b"[tissue]\n").unwrap();
+    let e = Checkpoint::read(&path).unwrap_err();
+    assert!(matches!(e, CheckpointError::NotACheckpoint { .. }), "{e}");
+    // A folder.
+    assert!(matches!(
+        Checkpoint::read(dir.path()).unwrap_err(),
+        CheckpointError::Io { .. }
+    ));
+}
+
+#[test]
+fn a_checkpoint_of_another_scene_is_refused_naming_the_part() {
+    let deb = scene(common::LINEAR_DEB.1);
+    let mut sim = start(&deb, Threading::Single);
+    sim.step_n(10).unwrap();
+    let c = sim.checkpoint().unwrap();
+    let pba = scene(common::MODELS[4].1);
+    match resume(&pba, c.clone()) {
+        Err(SimulationError::Checkpoint(CheckpointError::SceneMismatch { part })) => {
+            assert_eq!(part, "material")
+        }
+        other => panic!("expected a scene mismatch, got {:?}", other.err()),
+    }
+    // The run settings may change (a longer run resumes from the checkpoint).
+    let mut longer = deb.clone();
+    longer.run.steps *= 2;
+    longer.name = "longer".into();
+    assert!(resume(&longer, c).is_ok());
+}
