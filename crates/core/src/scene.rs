@@ -139,8 +139,11 @@ fn default_density() -> f64 {
 /// used to be accepted, and the body fell apart without a word.
 pub const MIN_NEIGHBOURS: usize = 6;
 
+/// Default of `tissue.neighbours`.
+pub const DEFAULT_NEIGHBOURS: usize = 18;
+
 fn default_neighbours() -> usize {
-    18
+    DEFAULT_NEIGHBOURS
 }
 
 /// The source of the tissue nodes, chosen by the key `kind`.
@@ -1058,6 +1061,16 @@ pub struct RunSettings {
     /// Write the surface mesh of every frame (VTK XML PolyData plus a .pvd time series).
     #[serde(default = "yes")]
     pub surface_frames: bool,
+    /// Largest estimated memory in GiB a scene may need (`max_memory_gib`, default 8):
+    /// the node count is estimated from the geometry (and the needle) before anything is
+    /// allocated ([`crate::geometry::memory`]), and a scene above it is an error naming
+    /// the key that asked for the nodes. Raise it for large runs.
+    #[serde(default = "default_max_memory_gib")]
+    pub max_memory_gib: f64,
+}
+
+fn default_max_memory_gib() -> f64 {
+    crate::geometry::memory::DEFAULT_MAX_MEMORY_GIB
 }
 
 fn default_steps() -> u64 {
@@ -1076,6 +1089,7 @@ impl Default for RunSettings {
             steps: default_steps(),
             output_every: default_output_every(),
             surface_frames: true,
+            max_memory_gib: default_max_memory_gib(),
         }
     }
 }
@@ -1401,6 +1415,7 @@ impl Scene {
         for s in self.initial.stretch {
             positive_finite("initial.stretch", s)?;
         }
+        positive_finite("run.max_memory_gib", self.run.max_memory_gib)?;
         if self.run.output_every == 0 {
             return Err(SceneError::invalid(
                 "run.output_every",

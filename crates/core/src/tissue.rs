@@ -13,6 +13,10 @@ use crate::scene::{
 };
 use crate::state::NodeState;
 
+/// The key memory errors name for the spare node slots: they hold the needle's nodes
+/// (`needle.length` over the needle's spacing).
+const EXTRA_KEY: &str = "needle.length";
+
 /// Everything a backend needs to simulate the tissue.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tissue {
@@ -49,16 +53,24 @@ impl Tissue {
         Self::from_scene_with_capacity(scene, 0)
     }
 
-    /// Builds the tissue with `extra` spare node slots after the mesh nodes.
+    /// Builds the tissue with `extra` spare node slots after the mesh nodes. The memory
+    /// estimate ([`geometry::check_memory`]) is checked before the nodes are allocated.
     pub fn from_scene_with_capacity(scene: &Scene, extra: usize) -> Result<Tissue, SceneError> {
-        let cloud = geometry::build(&scene.tissue.geometry, &scene.base_dir)?;
+        let cloud = geometry::build_checked(scene, extra as f64, EXTRA_KEY)?;
         Self::from_cloud(scene, cloud, extra)
     }
 
-    /// Builds the tissue from an already built node cloud.
+    /// Builds the tissue from an already built node cloud. The memory estimate of its
+    /// nodes and the `extra` slots is checked before the simulation arrays are allocated.
     pub fn from_cloud(scene: &Scene, cloud: NodeCloud, extra: usize) -> Result<Tissue, SceneError> {
         let n = cloud.positions.len();
         let k = scene.tissue.neighbours;
+        geometry::check_memory(
+            scene,
+            &geometry::MeshEstimate::built(n),
+            extra as f64,
+            EXTRA_KEY,
+        )?;
         if n < k + 1 {
             return Err(GeometryError::TooFewNodes {
                 nodes: n,

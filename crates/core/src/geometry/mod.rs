@@ -7,6 +7,7 @@
 
 pub mod box_lattice;
 pub mod cell_volume;
+pub mod memory;
 pub mod obj;
 pub mod ray_columns;
 pub mod resample;
@@ -15,7 +16,8 @@ pub mod shapes;
 pub mod triangle_bins;
 
 use crate::error::SceneError;
-use crate::scene::{Geometry, SurfaceNodes};
+use crate::scene::{Geometry, Scene, SurfaceNodes};
+pub use memory::{check_memory, MemoryEstimate, MeshEstimate};
 
 /// The largest lattice a surface may be sampled on (the box limit of 50 million nodes).
 pub const MAX_LATTICE_POINTS: f64 = 5.0e7;
@@ -70,8 +72,35 @@ pub fn bounds(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
     (lo, hi)
 }
 
-/// Builds the node cloud that a scene's geometry describes.
+/// Builds the node cloud that a scene's geometry describes, with no memory estimate (see
+/// [`build_checked`]).
 pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeCloud, SceneError> {
+    build_with(geometry, base_dir, &mut |_| Ok(()))
+}
+
+/// Builds the node cloud of `scene` after checking its memory estimate, with
+/// `extra_nodes` more node slots asked for by `extra_key` ([`check_memory`]): a box is
+/// checked before anything is allocated, a surface file once it is read and before it is
+/// sampled.
+pub fn build_checked(
+    scene: &Scene,
+    extra_nodes: f64,
+    extra_key: &str,
+) -> Result<NodeCloud, SceneError> {
+    build_with(&scene.tissue.geometry, &scene.base_dir, &mut |mesh| {
+        check_memory(scene, &mesh, extra_nodes, extra_key).map(|_| ())
+    })
+}
+
+/// A soft-tissue body larger than this (m) after `scale` most likely has the wrong
+/// `scale`; memory errors then name `scale` rather than `spacing`.
+const LIKELY_WRONG_SCALE_M: f64 = 10.0;
+
+fn build_with(
+    geometry: &Geometry,
+    base_dir: &std::path::Path,
+    check: &mut dyn FnMut(MeshEstimate) -> Result<(), SceneError>,
+) -> Result<NodeCloud, SceneError> {
     match geometry {
         Geometry::Box(crate::scene::BoxGeometry {
             min,
@@ -79,6 +108,28 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             spacing,
             nodes,
         }) => {
+            let (count, key, what) = match (spacing, nodes) {
+                (Some(h), _) => (
+                    (0..3)
+                        .map(|a| (((max[a] - min[a]) / h + 1e-9).floor() + 1.0).max(2.0))
+                        .product(),
+                    "tissue.geometry.spacing",
+                    format!("a box of {} at spacing {h} m", extent(*min, *max)),
+                ),
+                (None, Some(n)) => (
+                    // `with_node_count` lands within 3% of the target.
+                    1.03 * *n as f64,
+                    "tissue.geometry.nodes",
+                    format!("a box of {n} nodes"),
+                ),
+                (None, None) => (0.0, "tissue.geometry", String::new()),
+            };
+            check(MeshEstimate {
+                nodes: count,
+                lattice_points: 0.0,
+                key,
+                what,
+            })?;
             let lattice = match (spacing, nodes) {
                 (Some(h), _) => box_lattice::BoxLattice::with_spacing(*min, *max, *h),
                 (None, Some(n)) => box_lattice::BoxLattice::with_node_count(*min, *max, *n),
@@ -120,6 +171,30 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             let (lo, hi) = bounds(&surface.vertices);
             check_f32_resolution(lo, hi, g.spacing, "tissue.geometry.translate")?;
             let points = sampling::Lattice::count(lo, hi, g.spacing, 2);
+            let h = g.spacing;
+            // Interior nodes fill the volume at one per h^3; resampled surface nodes sit
+            // one per lattice cube the surface crosses, fewer than 3 area / h^2.
+            let surface_nodes = match g.surface {
+                SurfaceNodes::Resample => 3.0 * surface_area(&surface) / (h * h),
+                SurfaceNodes::Vertices => surface.vertices.len() as f64,
+            };
+            let largest = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+            let key = if g.scale != 1.0 && largest > LIKELY_WRONG_SCALE_M {
+                "tissue.geometry.scale"
+            } else {
+                "tissue.geometry.spacing"
+            };
+            check(MeshEstimate {
+                nodes: surface.volume / (h * h * h) + surface_nodes,
+                lattice_points: points,
+                key,
+                what: format!(
+                    "a surface of {} and {:.3e} m^3 after `scale` = {} at spacing {h} m",
+                    extent(lo, hi),
+                    surface.volume,
+                    g.scale
+                ),
+            })?;
             if points > MAX_LATTICE_POINTS {
                 let size: Vec<String> = (0..3).map(|a| format!("{:.3e}", hi[a] - lo[a])).collect();
                 return Err(SceneError::invalid(
@@ -142,6 +217,26 @@ pub fn build(geometry: &Geometry, base_dir: &std::path::Path) -> Result<NodeClou
             }
         }
     }
+}
+
+/// The extent `hi - lo` in words, `[x, y, z] m`.
+fn extent(lo: [f64; 3], hi: [f64; 3]) -> String {
+    let e: Vec<String> = (0..3).map(|a| format!("{:.3e}", hi[a] - lo[a])).collect();
+    format!("[{}] m", e.join(", "))
+}
+
+/// Total area of a surface's triangles in m^2.
+fn surface_area(surface: &obj::Surface) -> f64 {
+    surface
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| surface.vertices[i as usize]);
+            let e1 = sampling::sub(b, a);
+            let e2 = sampling::sub(c, a);
+            0.5 * sampling::len(sampling::cross(e1, e2))
+        })
+        .sum()
 }
 
 /// Node coordinates at most this many spacings from the origin: positions are stored in
