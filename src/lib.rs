@@ -31,7 +31,9 @@ pub use needlesim_core::{
 };
 pub use needlesim_gpu as gpu;
 pub use needlesim_needle as needle;
-pub use runner::{make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary};
+pub use runner::{
+    make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary, CHECKPOINT_FILE,
+};
 
 /// The default scene of `needlesim run` without a scene file: the paper's experiment, a
 /// needle moved 15 cm into a 639-node cube and rotated 25 degrees (local shape matching).

@@ -27,7 +27,8 @@ fn state_name(s: PunctureState) -> &'static str {
 pub struct NeedleCsv {
     path: PathBuf,
     out: std::io::BufWriter<std::fs::File>,
-    written: usize,
+    /// Step of the last row written.
+    written: Option<u64>,
 }
 
 impl NeedleCsv {
@@ -40,7 +41,7 @@ impl NeedleCsv {
         Ok(NeedleCsv {
             path,
             out,
-            written: 0,
+            written: None,
         })
     }
 
@@ -53,7 +54,10 @@ impl NeedleCsv {
         if sim.entry_point().is_none() && !last {
             return Ok(());
         }
-        for s in sim.history().iter().skip(self.written) {
+        // Steps increase along the history: the new rows follow the last one written.
+        let h = sim.history();
+        let from = h.partition_point(|s| self.written.is_some_and(|w| s.step <= w));
+        for s in &h[from..] {
             writeln!(
                 self.out,
                 "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{}",
@@ -67,7 +71,7 @@ impl NeedleCsv {
                 s.needle_nodes
             )?;
         }
-        self.written = sim.history().len();
+        self.written = sim.history().last().map(|s| s.step).or(self.written);
         self.out.flush()
     }
 

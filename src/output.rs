@@ -32,6 +32,15 @@ impl CsvWriter {
         })
     }
 
+    /// Opens an existing file to append rows (a resumed run).
+    pub fn append(path: &Path) -> std::io::Result<CsvWriter> {
+        let file = std::fs::OpenOptions::new().append(true).open(path)?;
+        Ok(CsvWriter {
+            path: path.to_path_buf(),
+            out: BufWriter::new(file),
+        })
+    }
+
     /// Appends one frame and flushes it to the file.
     pub fn row(&mut self, m: &FrameMetrics) -> std::io::Result<()> {
         writeln!(
@@ -75,6 +84,14 @@ impl SurfaceWriter {
         })
     }
 
+    /// Continues a series whose first frames, `(time, frame)` each, are on disk (a resumed
+    /// run; the index is rewritten at the next frame).
+    pub fn resume(out_dir: &Path, kept: &[(f64, usize)]) -> std::io::Result<SurfaceWriter> {
+        let mut w = SurfaceWriter::new(out_dir)?;
+        w.frames = kept.iter().map(|&(t, k)| (t, frame_name(k))).collect();
+        Ok(w)
+    }
+
     /// Writes one frame: `triangles` and `vertices` are node indices into `pos` and `rest`.
     pub fn frame(
         &mut self,
@@ -95,7 +112,7 @@ impl SurfaceWriter {
         let tris: Vec<[u32; 3]> = triangles.iter().map(|t| t.map(&mut local)).collect();
         let verts: Vec<u32> = vertices.iter().map(|&v| local(v)).collect();
         let needle: std::collections::HashSet<u32> = vertices.iter().copied().collect();
-        let name = format!("surface/surface_{:05}.vtp", self.frames.len());
+        let name = frame_name(self.frames.len());
         let mut out = BufWriter::new(File::create(self.dir.join(&name))?);
         writeln!(out, r#"<?xml version="1.0"?>"#)?;
         writeln!(
@@ -210,6 +227,73 @@ impl SurfaceWriter {
     }
 }
 
+fn frame_name(frame: usize) -> String {
+    format!("surface/surface_{frame:05}.vtp")
+}
+
+/// Prepares `out_dir` for a run resumed at step `at`: `frames.csv` and `reactions.csv`
+/// keep their rows of earlier steps (each file rewritten beside itself, then renamed over
+/// it), surface frames after those rows are removed, and `needle_force.csv` is left for
+/// the resumed run to rewrite from its history. Returns `(step, frame)` of the frames
+/// kept.
+pub fn keep_before(out_dir: &Path, at: u64) -> std::io::Result<Vec<(u64, usize)>> {
+    let invalid = |path: &Path, line: &str| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{}: unreadable row `{line}`", path.display()),
+        )
+    };
+    let mut kept = Vec::new();
+    for name in ["frames.csv", "reactions.csv"] {
+        let path = out_dir.join(name);
+        let text = match std::fs::read_to_string(&path) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && name == "reactions.csv" => {
+                continue
+            }
+            other => other?,
+        };
+        let mut out = String::new();
+        for (k, line) in text.lines().enumerate() {
+            if k == 0 {
+                out.push_str(line);
+                out.push('\n');
+                continue;
+            }
+            // Columns: frame, step, time.
+            let cols: Vec<&str> = line.splitn(4, ',').collect();
+            let parse = || -> Option<(usize, u64)> {
+                Some((cols.first()?.parse().ok()?, cols.get(1)?.parse().ok()?))
+            };
+            let (frame, step) = parse().ok_or_else(|| invalid(&path, line))?;
+            if step < at {
+                out.push_str(line);
+                out.push('\n');
+                if name == "frames.csv" {
+                    kept.push((step, frame));
+                }
+            }
+        }
+        let partial = out_dir.join(format!("{name}.partial"));
+        std::fs::write(&partial, out)?;
+        std::fs::rename(&partial, &path)?;
+    }
+    let frames = out_dir.join("surface");
+    if let Ok(entries) = std::fs::read_dir(&frames) {
+        for entry in entries {
+            let name = entry?.file_name();
+            let name = name.to_string_lossy();
+            let number = name
+                .strip_prefix("surface_")
+                .and_then(|n| n.strip_suffix(".vtp"))
+                .and_then(|n| n.parse::<usize>().ok());
+            if number.is_some_and(|k| k >= kept.len()) {
+                std::fs::remove_file(frames.join(name.as_ref()))?;
+            }
+        }
+    }
+    Ok(kept)
+}
+
 /// The files a run writes into its output folder, removed before a fresh run writes
 /// there, so that no frame of an earlier run is mistaken for one of this run. Only
 /// these names are touched; anything else in the folder stays.
@@ -226,6 +310,8 @@ pub fn clear_previous_run(out_dir: &Path) -> std::io::Result<()> {
         "needle_force_time.png",
         "surface.pvd",
         "surface.pvd.partial",
+        "checkpoint.bin",
+        "checkpoint.bin.partial",
     ] {
         remove(out_dir.join(name))?;
     }

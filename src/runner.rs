@@ -40,8 +40,11 @@ pub enum RunError {
     #[error(transparent)]
     Gpu(#[from] needlesim_gpu::GpuError),
     /// [`RunOptions::stop`] was set (the CLI sets it on SIGINT and SIGTERM).
-    #[error("interrupted at step {step}{}", match out_dir {
+    #[error("interrupted at step {step}{}{}", match out_dir {
         Some(d) => format!("; {frames} frames written to {} (complete up to the last frame)", d.display()),
+        None => String::new(),
+    }, match checkpoint {
+        Some(c) => format!("; a checkpoint at step {c} is in the same folder: continue with `--resume`"),
         None => String::new(),
     })]
     Interrupted {
@@ -51,7 +54,12 @@ pub enum RunError {
         frames: usize,
         /// Where the output is, if files were written.
         out_dir: Option<PathBuf>,
+        /// Step of the last checkpoint written, if any.
+        checkpoint: Option<u64>,
     },
+    /// A checkpoint cannot be written or resumed from, or `checkpoint_every` is 0.
+    #[error("{0}")]
+    Checkpoint(String),
 }
 
 impl From<SimulationError> for RunError {
@@ -60,6 +68,7 @@ impl From<SimulationError> for RunError {
         match e {
             SimulationError::Scene(s) => RunError::Scene(s),
             SimulationError::Sim(s) => RunError::Sim(s),
+            SimulationError::Checkpoint(c) => RunError::Checkpoint(c.to_string()),
             other => RunError::Needle(other),
         }
     }
@@ -82,6 +91,15 @@ pub struct RunOptions {
     /// boundary with [`RunError::Interrupted`]; it is looked at every 16 steps, or after
     /// more steps when 16 take less than 50 ms.
     pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// Writes `checkpoint.bin` into the output folder at the first frame at or after every
+    /// this many steps (atomically: an interruption leaves the previous one intact).
+    pub checkpoint_every: Option<u64>,
+    /// Continues the run from `checkpoint.bin` in the output folder (taken with the same
+    /// scene; `run.steps` may be larger): the files keep their rows and frames before the
+    /// checkpoint's step and go on from there.
+    pub resume: bool,
+    /// The scene's text, stored in the checkpoints so that they are enough to resume.
+    pub scene_text: Option<needlesim_needle::SceneText>,
 }
 
 impl RunOptions {
@@ -94,6 +112,9 @@ impl RunOptions {
             threads: None,
             write_files: true,
             stop: None,
+            checkpoint_every: None,
+            resume: false,
+            scene_text: None,
         }
     }
 }
@@ -224,6 +245,9 @@ const STOP_CHECK_STEPS: u64 = 16;
 /// Wall time a stretch of steps between two looks at [`RunOptions::stop`] aims below.
 const STOP_CHECK_SECONDS: f64 = 0.05;
 
+/// The checkpoint's file name in the output folder ([`RunOptions::checkpoint_every`]).
+pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
+
 /// The open output files of a run.
 struct Outputs {
     dir: PathBuf,
@@ -239,19 +263,47 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> RunError {
 }
 
 impl Outputs {
-    /// Clears the files of an earlier run in `dir` and opens this run's.
-    fn create(scene: &Scene, sim: &Simulation, dir: &Path) -> Result<Outputs, RunError> {
+    /// Opens this run's files in `dir`: a fresh run clears the files of an earlier run; a
+    /// resumed one (`resume_at`: the checkpoint's step) keeps the rows and frames of steps
+    /// before it. Returns the files and the number of frames kept.
+    fn create(
+        scene: &Scene,
+        sim: &Simulation,
+        dir: &Path,
+        resume_at: Option<u64>,
+    ) -> Result<(Outputs, usize), RunError> {
         std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-        crate::output::clear_previous_run(dir).map_err(io_error(dir))?;
-        let frames = Some(CsvWriter::create(&dir.join("frames.csv")).map_err(io_error(dir))?);
+        let kept = match resume_at {
+            Some(step) => crate::output::keep_before(dir, step).map_err(io_error(dir))?,
+            None => {
+                crate::output::clear_previous_run(dir).map_err(io_error(dir))?;
+                Vec::new()
+            }
+        };
+        let frames_path = dir.join("frames.csv");
+        let frames = Some(if resume_at.is_some() {
+            CsvWriter::append(&frames_path).map_err(io_error(&frames_path))?
+        } else {
+            CsvWriter::create(&frames_path).map_err(io_error(&frames_path))?
+        });
         let surface = if scene.run.surface_frames {
-            Some(SurfaceWriter::new(dir).map_err(io_error(dir))?)
+            // The times the frames were written with (`FrameMetrics::time`).
+            let dt = sim.dt();
+            let times: Vec<(f64, usize)> = kept.iter().map(|&(s, k)| (s as f64 * dt, k)).collect();
+            Some(SurfaceWriter::resume(dir, &times).map_err(io_error(dir))?)
         } else {
             None
         };
         // The reactions of the held sets, one row per frame.
         let mut reactions = None;
-        if !sim.boundary().held.is_empty() {
+        if !sim.boundary().held.is_empty() && resume_at.is_some() {
+            let path = dir.join("reactions.csv");
+            let file = std::fs::OpenOptions::new()
+                .append(true)
+                .open(&path)
+                .map_err(io_error(&path))?;
+            reactions = Some((path, std::io::BufWriter::new(file)));
+        } else if !sim.boundary().held.is_empty() {
             let path = dir.join("reactions.csv");
             let mut w =
                 std::io::BufWriter::new(std::fs::File::create(&path).map_err(io_error(&path))?);
@@ -269,13 +321,16 @@ impl Outputs {
         } else {
             None
         };
-        Ok(Outputs {
-            dir: dir.to_path_buf(),
-            frames,
-            surface,
-            reactions,
-            needle,
-        })
+        Ok((
+            Outputs {
+                dir: dir.to_path_buf(),
+                frames,
+                surface,
+                reactions,
+                needle,
+            },
+            kept.len(),
+        ))
     }
 
     /// Writes one frame to every file and flushes them.
@@ -354,19 +409,39 @@ pub fn run_scene(
     mut progress: impl FnMut(u64, u64),
 ) -> Result<RunSummary, RunError> {
     let start = Instant::now();
+    let checkpoint_path = options.out_dir.join(CHECKPOINT_FILE);
+    if options.checkpoint_every == Some(0) {
+        return Err(RunError::Checkpoint(
+            "checkpoint_every must be at least 1 step".into(),
+        ));
+    }
+    let checkpoint = if options.resume {
+        Some(
+            needlesim_needle::Checkpoint::read(&checkpoint_path)
+                .map_err(|e| RunError::Checkpoint(e.to_string()))?,
+        )
+    } else {
+        None
+    };
     let prep = Simulation::prepare(scene)?;
     let dt = prep.tissue.step.dt as f64;
     let (backend, warning) =
         make_backend(scene, prep.tissue.clone(), options.backend, options.threads)?;
-    let mut sim = prep.start(backend)?;
+    let mut sim = match checkpoint {
+        Some(c) => prep.resume(backend, c)?,
+        None => prep.start(backend)?,
+    };
+    let resume_at = options.resume.then(|| sim.steps());
     let has_needle = sim.needle().is_some();
     let total = options.steps.unwrap_or(scene.run.steps);
     let every = scene.run.output_every;
-    let mut outputs = if options.write_files {
-        Some(Outputs::create(scene, &sim, &options.out_dir)?)
+    let (mut outputs, kept) = if options.write_files {
+        let (o, kept) = Outputs::create(scene, &sim, &options.out_dir, resume_at)?;
+        (Some(o), kept)
     } else {
-        None
+        (None, 0)
     };
+    let mut last_checkpoint = resume_at;
     let stopped = || {
         options
             .stop
@@ -375,7 +450,8 @@ pub fn run_scene(
     };
     let mut frames = Vec::new();
     let mut step_time = Duration::ZERO;
-    let mut done = 0u64;
+    let first_step = sim.steps();
+    let mut done = first_step;
     let mut stretch = STOP_CHECK_STEPS;
     let mut run = || -> Result<(), RunError> {
         loop {
@@ -389,11 +465,22 @@ pub fn run_scene(
             backend.read(NodeField::Force, 0..n, &mut force)?;
             sim.check()?;
             let rest = sim.rest_positions();
-            let m = metrics(frames.len(), done, dt, &pos, &vel, &force, &rest);
+            let m = metrics(kept + frames.len(), done, dt, &pos, &vel, &force, &rest);
             if let Some(o) = outputs.as_mut() {
                 o.frame(&mut sim, &m, &pos, &rest)?;
             }
             frames.push(m);
+            if let Some(n) = options.checkpoint_every {
+                if done >= last_checkpoint.map_or(n, |c| c + n) && done < total {
+                    std::fs::create_dir_all(&options.out_dir)
+                        .map_err(io_error(&options.out_dir))?;
+                    let mut c = sim.checkpoint()?;
+                    c.scene = options.scene_text.clone();
+                    c.write(&checkpoint_path)
+                        .map_err(|e| RunError::Checkpoint(e.to_string()))?;
+                    last_checkpoint = Some(done);
+                }
+            }
             progress(done, total);
             if done >= total {
                 return Ok(());
@@ -406,8 +493,9 @@ pub fn run_scene(
                     step_time += t0.elapsed();
                     return Err(RunError::Interrupted {
                         step: done + stepped,
-                        frames: frames.len(),
+                        frames: kept + frames.len(),
                         out_dir: options.write_files.then(|| options.out_dir.clone()),
+                        checkpoint: last_checkpoint,
                     });
                 }
                 let piece = stretch.min(chunk - stepped);
@@ -438,7 +526,7 @@ pub fn run_scene(
     Ok(RunSummary {
         backend: sim.backend().name(),
         nodes,
-        steps: done,
+        steps: done - first_step,
         step_time,
         total_time: start.elapsed(),
         frames,

@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use needlesim::core::scene::BackendChoice;
 use needlesim::gpu::GpuContext;
+use needlesim::needle::{Checkpoint, SceneText};
 use needlesim::{run_scene, RunError, RunOptions, Scene, SceneInfo, DEFAULT_SCENE};
 use std::path::{Path, PathBuf};
 
@@ -39,6 +40,15 @@ enum Command {
         /// --backend).
         #[arg(long)]
         threads: Option<usize>,
+        /// Write the whole state to <out>/checkpoint.bin at the first frame at or after
+        /// every N steps.
+        #[arg(long, value_name = "N")]
+        checkpoint_every: Option<u64>,
+        /// Continue the run whose output folder DIR holds a checkpoint.bin (the scene is
+        /// the one stored in the checkpoint when none is given); its files keep what was
+        /// written before the checkpoint.
+        #[arg(long, value_name = "DIR", conflicts_with = "out")]
+        resume: Option<PathBuf>,
     },
     /// Print the GPU adapter wgpu finds (or why there is none).
     Adapter,
@@ -76,6 +86,12 @@ fn parse_backend(s: &str) -> Result<BackendChoice, String> {
 }
 
 fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
+    let (s, stem, _) = load_with_text(scene)?;
+    Ok((s, stem))
+}
+
+/// The scene, its name for the output folder, and its text (checkpoints carry it).
+fn load_with_text(scene: &Option<PathBuf>) -> Result<(Scene, String, SceneText)> {
     match scene {
         Some(path) => {
             let s = Scene::from_file(path)?;
@@ -83,11 +99,20 @@ fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "scene".into());
-            Ok((s, stem))
+            let text = SceneText {
+                toml: std::fs::read_to_string(path)
+                    .with_context(|| format!("reading {}", path.display()))?,
+                base_dir: s.base_dir.clone(),
+            };
+            Ok((s, stem, text))
         }
         None => Ok((
             Scene::from_toml_str(DEFAULT_SCENE, Path::new("."))?,
             "default".into(),
+            SceneText {
+                toml: DEFAULT_SCENE.to_string(),
+                base_dir: PathBuf::from("."),
+            },
         )),
     }
 }
@@ -194,9 +219,26 @@ fn run(cli: Cli) -> Result<()> {
             steps,
             backend,
             threads,
+            checkpoint_every,
+            resume,
         } => {
-            let (scene, stem) = load(&scene)?;
-            let out = out.unwrap_or_else(|| PathBuf::from("out").join(&stem));
+            let (scene, stem, text) = match (&scene, &resume) {
+                // Resuming without a scene: the one the checkpoint carries.
+                (None, Some(dir)) => {
+                    let c = Checkpoint::read(dir.join(needlesim::CHECKPOINT_FILE))?;
+                    let text = c.scene.ok_or(needlesim::needle::CheckpointError::NoScene)?;
+                    let stem = dir
+                        .file_name()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_else(|| "scene".into());
+                    (text.scene()?, stem, text)
+                }
+                _ => load_with_text(&scene)?,
+            };
+            let out = resume
+                .clone()
+                .or(out)
+                .unwrap_or_else(|| PathBuf::from("out").join(&stem));
             // SIGINT and SIGTERM stop the run at a step boundary with its files complete
             // up to the last frame; a second signal ends the process at once.
             let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -214,6 +256,9 @@ fn run(cli: Cli) -> Result<()> {
                 threads,
                 write_files: true,
                 stop: Some(stop),
+                checkpoint_every,
+                resume: resume.is_some(),
+                scene_text: Some(text),
             };
             let total = steps.unwrap_or(scene.run.steps);
             let bar = ProgressBar::new(total);

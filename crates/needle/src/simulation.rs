@@ -317,6 +317,8 @@ impl Prepared {
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,
+            history_limit: None,
+            start_tip: None,
             rest: self.rest,
             max_speed: self.guard.0,
             check_every: self.guard.1,
@@ -364,6 +366,10 @@ pub struct Simulation {
     force: NeedleForce,
     history: Vec<NeedleSample>,
     record: bool,
+    /// Most history samples kept (the oldest go first); `None` keeps every one.
+    history_limit: Option<usize>,
+    /// The tip before the first recorded step (the depth origin before any contact).
+    start_tip: Option<[f64; 3]>,
     rest: Vec<[f64; 3]>,
     max_speed: f64,
     check_every: u64,
@@ -394,6 +400,8 @@ pub(crate) struct SimSnapshot {
     force: NeedleForce,
     history: Vec<NeedleSample>,
     record: bool,
+    history_limit: Option<usize>,
+    start_tip: Option<[f64; 3]>,
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -550,6 +558,8 @@ impl Simulation {
                 force: self.force,
                 history: self.history.clone(),
                 record: self.record,
+                history_limit: self.history_limit,
+                start_tip: self.start_tip,
             },
         })
     }
@@ -628,6 +638,8 @@ impl Simulation {
         self.force = sim.force;
         self.history = sim.history;
         self.record = sim.record;
+        self.history_limit = sim.history_limit;
+        self.start_tip = sim.start_tip;
         Ok(())
     }
 
@@ -712,9 +724,42 @@ impl Simulation {
         self.script.as_ref().map_or(0.0, |s| s.duration())
     }
 
-    /// Every step's record so far.
+    /// Every step's record so far (the last [`Simulation::set_history_limit`] steps when
+    /// bounded).
     pub fn history(&self) -> &[NeedleSample] {
-        &self.history
+        let keep = self.history_limit.unwrap_or(usize::MAX);
+        &self.history[self.history.len().saturating_sub(keep)..]
+    }
+
+    /// Keeps at most the last `limit` steps in the history (`None`, the default, keeps
+    /// every step: about 120 bytes a step). Samples past the limit are dropped oldest
+    /// first; [`Simulation::take_history`] streams them out instead.
+    pub fn set_history_limit(&mut self, limit: Option<usize>) {
+        self.history_limit = limit;
+        self.trim_history();
+    }
+
+    /// Most steps the history keeps (`None`: all).
+    pub fn history_limit(&self) -> Option<usize> {
+        self.history_limit
+    }
+
+    /// Returns the history and clears it (stream it to disk in a long run).
+    pub fn take_history(&mut self) -> Vec<NeedleSample> {
+        let keep = self.history().len();
+        let mut h = std::mem::take(&mut self.history);
+        h.drain(..h.len() - keep);
+        h
+    }
+
+    /// Drops the oldest samples past the limit, in batches (amortised O(1) a step).
+    fn trim_history(&mut self) {
+        if let Some(limit) = self.history_limit {
+            if self.history.len() > limit.saturating_mul(2).max(limit + 1024) {
+                let drop = self.history.len() - limit;
+                self.history.drain(..drop);
+            }
+        }
     }
 
     /// Whether [`Simulation::step`] appends to the history (default true).
@@ -730,10 +775,7 @@ impl Simulation {
     /// Depth of the tip past the first contact point along the needle, m (from the start
     /// tip before any contact).
     pub fn depth_of(&self, tip: [f64; 3], direction: [f64; 3]) -> f64 {
-        let origin = self
-            .entry
-            .or_else(|| self.history.first().map(|s| s.tip))
-            .unwrap_or(tip);
+        let origin = self.entry.or(self.start_tip).unwrap_or(tip);
         dot(sub(tip, origin), direction)
     }
 
@@ -829,6 +871,7 @@ impl Simulation {
         self.apply_friction(&prev, &now)?;
         self.load_integrate_project()?;
         if self.record {
+            self.start_tip.get_or_insert(now.tip());
             self.history.push(NeedleSample {
                 step: self.steps,
                 time: self.time,
@@ -839,6 +882,7 @@ impl Simulation {
                 active_nodes: self.backend.n_active(),
                 needle_nodes: self.nodes.len(),
             });
+            self.trim_history();
         }
         Ok(())
     }

@@ -7,7 +7,7 @@
 //! `RuntimeError` (divergence, device failure, needle capacity), with the Rust message.
 
 use needlesim::core::scene::BackendChoice;
-use needlesim::needle::{PunctureState, Simulation, SimulationError};
+use needlesim::needle::{Checkpoint, PunctureState, SceneText, Simulation, SimulationError};
 use needlesim::{make_backend, NodeField, RunError, Scene};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -130,20 +130,33 @@ struct PySimulation {
     sim: Mutex<Simulation>,
     warnings: Vec<String>,
     masses: Vec<f64>,
+    /// The scene as TOML (checkpoints carry it).
+    scene: SceneText,
 }
 
 impl PySimulation {
-    fn build(scene: &Scene, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+    fn build(
+        scene: SceneText,
+        backend: Option<&str>,
+        threads: Option<usize>,
+        checkpoint: Option<Checkpoint>,
+    ) -> PyResult<Self> {
+        let parsed = scene.scene().map_err(value_error)?;
         let choice = backend_choice(backend)?;
-        let prep = Simulation::prepare(scene).map_err(sim_error)?;
+        let prep = Simulation::prepare(&parsed).map_err(sim_error)?;
         let (b, warning) =
-            make_backend(scene, prep.tissue.clone(), choice, threads).map_err(run_error)?;
+            make_backend(&parsed, prep.tissue.clone(), choice, threads).map_err(run_error)?;
         let masses = prep.tissue.masses.clone();
-        let sim = prep.start(b).map_err(sim_error)?;
+        let sim = match checkpoint {
+            Some(c) => prep.resume(b, c),
+            None => prep.start(b),
+        }
+        .map_err(sim_error)?;
         Ok(PySimulation {
             sim: Mutex::new(sim),
             warnings: warning.into_iter().collect(),
             masses,
+            scene,
         })
     }
 
@@ -186,8 +199,14 @@ impl PySimulation {
     #[staticmethod]
     #[pyo3(signature = (path, backend=None, threads=None))]
     fn from_scene(path: PathBuf, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+        // Read through the checked path (size, regular file) first, for its errors.
         let scene = Scene::from_file(&path).map_err(value_error)?;
-        Self::build(&scene, backend, threads)
+        let toml = std::fs::read_to_string(&path).map_err(value_error)?;
+        let text = SceneText {
+            toml,
+            base_dir: scene.base_dir.clone(),
+        };
+        Self::build(text, backend, threads, None)
     }
 
     /// Builds a scene given as a dict with the keys of the TOML format (nested dicts for
@@ -202,10 +221,51 @@ impl PySimulation {
         base_dir: Option<PathBuf>,
     ) -> PyResult<Self> {
         let table = to_toml(scene.as_any(), "")?;
-        let text = toml::to_string(&table).map_err(value_error)?;
-        let base = base_dir.unwrap_or_else(|| PathBuf::from("."));
-        let scene = Scene::from_toml_str(&text, Path::new(&base)).map_err(value_error)?;
-        Self::build(&scene, backend, threads)
+        let toml = toml::to_string(&table).map_err(value_error)?;
+        let base_dir = base_dir.unwrap_or_else(|| PathBuf::from("."));
+        Self::build(SceneText { toml, base_dir }, backend, threads, None)
+    }
+
+    /// Writes the whole state (node arrays, needle nodes and undo log, puncture and
+    /// friction states, clock, history, and the scene) to `path`, atomically. `load`
+    /// continues from it bitwise as this simulation would on the CPU backends.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let scene = self.scene.clone();
+        let sim = &self.sim;
+        py.detach(|| {
+            let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());
+            let mut c = s.checkpoint().map_err(|e| e.to_string())?;
+            c.scene = Some(scene);
+            c.write(&path).map_err(|e| e.to_string())
+        })
+        .map_err(PyRuntimeError::new_err)
+    }
+
+    /// A simulation in the state `save` wrote to `path` (built from the scene the file
+    /// carries; `backend` and `threads` as in `from_scene`). A file of another format
+    /// version, a truncated or altered one is a ValueError naming the problem.
+    #[staticmethod]
+    #[pyo3(signature = (path, backend=None, threads=None))]
+    fn load(path: PathBuf, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+        let mut c = Checkpoint::read(&path).map_err(value_error)?;
+        let scene = c
+            .scene
+            .take()
+            .ok_or_else(|| value_error(needlesim::needle::CheckpointError::NoScene))?;
+        Self::build(scene, backend, threads, Some(c))
+    }
+
+    /// Most steps `history()` keeps (None, the default: every step, about 120 bytes a
+    /// step). When set, the oldest steps are dropped first; `history(clear=True)` streams
+    /// the record out instead.
+    #[getter]
+    fn get_history_limit(&self) -> Option<usize> {
+        self.lock().history_limit()
+    }
+
+    #[setter]
+    fn set_history_limit(&self, limit: Option<usize>) {
+        self.lock().set_history_limit(limit);
     }
 
     /// Runs `n` steps with the interpreter lock released. Every `physics.check_every`
@@ -369,9 +429,17 @@ impl PySimulation {
 
     /// Every step's needle record as numpy arrays: step, time, depth (m past the first
     /// contact), axial, lateral (N), active_nodes, needle_nodes, and state (list of str).
-    fn history<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let sim = self.lock();
-        let h = sim.history();
+    /// `clear=True` also empties the record (stream a long run to disk chunk by chunk).
+    #[pyo3(signature = (clear=false))]
+    fn history<'py>(&self, py: Python<'py>, clear: bool) -> PyResult<Bound<'py, PyDict>> {
+        let mut sim = self.lock();
+        let taken;
+        let h = if clear {
+            taken = sim.take_history();
+            &taken[..]
+        } else {
+            sim.history()
+        };
         let d = PyDict::new(py);
         let col = |f: &dyn Fn(&needlesim::needle::NeedleSample) -> f64| -> Vec<f64> {
             h.iter().map(f).collect()

@@ -241,3 +241,44 @@ def test_step_is_interrupted_by_a_signal_at_a_step_boundary():
     sim.step(10)
     assert sim.steps == done + 10
     assert np.isfinite(sim.positions).all()
+
+
+def test_save_and_load_continue_bitwise_with_the_needle_inside(tmp_path):
+    straight = needlesim.Simulation.from_scene(INSERT_EXTRACT, backend="cpu")
+    straight.step(1500)
+    assert straight.puncture_state == "inside" and straight.needle_nodes >= 3
+    path = tmp_path / "state.ckpt"
+    straight.save(path)
+    straight.step(700)
+    resumed = needlesim.Simulation.load(path, backend="cpu")
+    assert resumed.steps == 1500
+    resumed.step(700)
+    for name in ("positions", "velocities", "forces"):
+        assert np.array_equal(getattr(straight, name), getattr(resumed, name)), name
+    a, b = straight.history(), resumed.history()
+    for key in ("step", "time", "depth", "axial", "lateral", "needle_nodes"):
+        assert np.array_equal(a[key], b[key]), key
+    assert a["state"] == b["state"]
+    # Damage is a ValueError naming what is wrong.
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(ValueError, match="truncated"):
+        needlesim.Simulation.load(path)
+    path.write_bytes(b"not a checkpoint")
+    with pytest.raises(ValueError, match="not a needlesim checkpoint"):
+        needlesim.Simulation.load(path)
+
+
+def test_history_can_be_bounded_or_streamed():
+    sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, backend="cpu")
+    assert sim.history_limit is None
+    sim.history_limit = 100
+    sim.step(3000)
+    h = sim.history()
+    assert len(h["step"]) == 100 and h["step"][-1] == 3000
+    sim.history_limit = None
+    chunks = [sim.history(clear=True)["step"]]
+    sim.step(50)
+    chunks.append(sim.history(clear=True)["step"])
+    assert len(chunks[1]) == 50 and chunks[1][0] == 3001
+    assert len(sim.history()["step"]) == 0

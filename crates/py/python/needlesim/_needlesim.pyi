@@ -30,6 +30,21 @@ class Simulation:
         base_dir: Optional[Union[str, PathLike[str]]] = None,
     ) -> "Simulation":
         """Builds a scene given as a dict with the TOML format's keys."""
+    def save(self, path: Union[str, PathLike[str]]) -> None:
+        """Writes the whole state and the scene to one versioned file (atomically)."""
+    @staticmethod
+    def load(
+        path: Union[str, PathLike[str]],
+        backend: Optional[Backend] = None,
+        threads: Optional[int] = None,
+    ) -> "Simulation":
+        """The simulation save() wrote; continues bitwise on the CPU backends. ValueError
+        for a truncated or altered file or another format version."""
+    @property
+    def history_limit(self) -> Optional[int]:
+        """Most steps history() keeps (None, the default: all, ~120 bytes a step)."""
+    @history_limit.setter
+    def history_limit(self, limit: Optional[int]) -> None: ...
     def step(self, n: int = 1) -> None:
         """Runs n steps with the interpreter lock released; RuntimeError on divergence."""
     @property
@@ -71,9 +86,9 @@ class Simulation:
     @property
     def needle_force(self) -> Dict[str, Any]:
         """{"axial": float, "lateral": float, "total": (3,) array} in N of the last step."""
-    def history(self) -> Dict[str, Any]:
+    def history(self, clear: bool = False) -> Dict[str, Any]:
         """Per-step arrays: step, time, depth, axial, lateral, active_nodes, needle_nodes;
-        state as a list of str."""
+        state as a list of str. clear=True also empties the record (streaming)."""
     @property
     def active_nodes(self) -> int: ...
     @property
