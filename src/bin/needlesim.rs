@@ -126,7 +126,7 @@ fn main() -> std::process::ExitCode {
         // The reader of stdout went away (`needlesim ... | head`): nothing more to say.
         Err(e) if is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", message(&e));
             let interrupted = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<RunError>(),
@@ -136,6 +136,22 @@ fn main() -> std::process::ExitCode {
             std::process::ExitCode::from(if interrupted { INTERRUPTED } else { 1 })
         }
     }
+}
+
+/// The error and its causes joined by `: `, leaving out a cause whose text the message
+/// already ends with (errors that print their source).
+fn message(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for c in e.chain() {
+        let text = c.to_string();
+        if !out.ends_with(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }
 
 fn is_broken_pipe(e: &anyhow::Error) -> bool {

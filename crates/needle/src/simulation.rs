@@ -100,6 +100,38 @@ pub enum SimulationError {
         /// Slots of the backend given.
         got: usize,
     },
+    /// The needle starts with its tip (or shaft) inside the tissue: the puncture state
+    /// machine starts Outside, so it would never see the tissue the needle is in.
+    #[error(
+        "the needle starts inside the tissue: its {what} at {point:?} m is {where_} (start \
+         the needle outside the body, with its tip before the surface, and insert it with \
+         keyframes or set_pose)"
+    )]
+    StartsInside {
+        /// `tip`, `base` or `shaft`.
+        what: &'static str,
+        /// The point inside the body or where the shaft crosses the surface, m.
+        point: [f64; 3],
+        /// `inside the body` or `crossing the surface`.
+        where_: &'static str,
+    },
+    /// The needle moved further in one step than the contact can resolve (a very fast
+    /// needle, or a pose that jumped, as from a glitching haptic device).
+    #[error(
+        "step {step}: the needle moved {moved:.3e} m in one step while {phase}, more than \
+         {limit:.3e} m (4 needle node spacings): the contact cannot follow (lower the \
+         speed, refine physics.dt, or move the needle in smaller steps)"
+    )]
+    TooFast {
+        /// Step at which it happened.
+        step: u64,
+        /// Largest displacement of a needle point over the step, m.
+        moved: f64,
+        /// The limit ([`MAX_STEP_SPACINGS`] node spacings), m.
+        limit: f64,
+        /// The contact phase it happened in.
+        phase: &'static str,
+    },
     /// A checkpoint cannot be written, read or restored.
     #[error(transparent)]
     Checkpoint(#[from] crate::checkpoint::CheckpointError),
@@ -122,6 +154,13 @@ pub enum SimulationError {
         ahead: f64,
     },
 }
+
+/// Most needle node spacings a needle point may move in one step while in contact.
+/// Node addition and removal handle several nodes per step (tested at 2.7 spacings a
+/// step); at 8 spacings a step (a 90 m/s needle in the shipped scenes) the tip crossed the
+/// whole body within the Touching phase and nodes were placed past the far surface until
+/// the slots ran out. A haptic pose glitch is usually far larger.
+pub const MAX_STEP_SPACINGS: f64 = 4.0;
 
 /// Role of a needle node.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -325,6 +364,9 @@ impl Prepared {
             boundary: self.tissue.boundary.clone(),
             fingerprint: self.fingerprint,
         };
+        if let Some(n) = sim.needle {
+            sim.check_start_outside(&n)?;
+        }
         // Prescribed displacements hold from the start (a ramp starts at zero).
         sim.boundary.project(sim.backend.as_mut(), 0.0)?;
         Ok(sim)
@@ -562,6 +604,86 @@ impl Simulation {
                 start_tip: self.start_tip,
             },
         })
+    }
+
+    /// Errs when the start pose has the tip or the base inside the body (odd crossings of a
+    /// ray to far outside) or the shaft crossing its surface, on the rest surface.
+    fn check_start_outside(&self, n: &Needle) -> Result<(), SimulationError> {
+        let corners = |t: &[u32; 3]| t.map(|v| self.rest[v as usize]);
+        let crossings = |p0: [f64; 3], p1: [f64; 3]| -> Vec<f64> {
+            self.triangles
+                .iter()
+                .filter_map(|t| {
+                    let [a, b, c] = corners(t);
+                    segment_triangle(p0, p1, a, b, c).map(|h| h.0)
+                })
+                .collect()
+        };
+        let (lo, hi) = geometry::bounds(&self.rest);
+        let reach = 4.0 * (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+        // A direction unlikely to graze edges of axis-aligned or regular meshes.
+        let ray = [0.5377, 0.6143, 0.5773];
+        let inside = |p: [f64; 3]| {
+            let far = std::array::from_fn(|a| p[a] + reach * ray[a]);
+            let mut t = crossings(p, far);
+            // A hit on an edge is found in both triangles sharing it.
+            t.sort_by(f64::total_cmp);
+            t.dedup_by(|x, y| (*x - *y).abs() < 1e-9);
+            t.len() % 2 == 1
+        };
+        let (base, tip) = (n.base(), n.tip());
+        for (what, p) in [("tip", tip), ("base", base)] {
+            if inside(p) {
+                return Err(SimulationError::StartsInside {
+                    what,
+                    point: p,
+                    where_: "inside the body",
+                });
+            }
+        }
+        if let Some(t) = crossings(base, tip).into_iter().min_by(f64::total_cmp) {
+            return Err(SimulationError::StartsInside {
+                what: "shaft",
+                point: std::array::from_fn(|a| base[a] + t * (tip[a] - base[a])),
+                where_: "crossing the surface",
+            });
+        }
+        Ok(())
+    }
+
+    /// Errs when a needle point moved more than [`MAX_STEP_SPACINGS`] node spacings over
+    /// the step while the needle is in contact, or when it enters the body and ends more
+    /// than that past the surface. (A rigid motion interpolated over the step moves the
+    /// points of a segment most at its ends.)
+    fn check_motion(
+        &self,
+        prev: &Needle,
+        now: &Needle,
+        entry: Option<[f64; 3]>,
+    ) -> Result<(), SimulationError> {
+        let dist = |a: [f64; 3], b: [f64; 3]| dot(sub(a, b), sub(a, b)).sqrt();
+        let (moved, phase) = match (self.phase, entry) {
+            (Phase::Outside, None) => return Ok(()),
+            (Phase::Outside, Some(p)) => (dist(now.tip(), p), "entering the body"),
+            (phase, _) => (
+                dist(now.tip(), prev.tip()).max(dist(now.base(), prev.base())),
+                match phase {
+                    Phase::Touching | Phase::ExitTouching => "touching the surface",
+                    Phase::Exited => "through the body",
+                    _ => "inside the body",
+                },
+            ),
+        };
+        let limit = MAX_STEP_SPACINGS * self.spacing;
+        if moved > limit {
+            return Err(SimulationError::TooFast {
+                step: self.steps + 1,
+                moved,
+                limit,
+                phase,
+            });
+        }
+        Ok(())
     }
 
     /// Puts a checkpoint's state into this freshly started simulation.
@@ -1030,6 +1152,9 @@ impl Simulation {
         let tip = now.tip();
         let v_tip = self.needle_velocity(prev, now, now.length());
         self.swept_from = prev.tip();
+        if self.phase != Phase::Outside {
+            self.check_motion(prev, now, None)?;
+        }
         match self.phase {
             Phase::Outside => {
                 let hit = self
@@ -1038,6 +1163,7 @@ impl Simulation {
                 let Some((id, point)) = hit else {
                     return Ok(());
                 };
+                self.check_motion(prev, now, Some(point))?;
                 self.pin_at_surface(NodeRole::Surface, id, point, now, v_tip)?;
                 self.entry.get_or_insert(point);
                 self.phase = Phase::Touching;
