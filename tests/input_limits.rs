@@ -133,3 +133,69 @@ fn spare_node_slots_enter_the_estimate() {
         }
     }
 }
+
+/// An OBJ of axis-aligned cubes (`(corner, side)` each, one closed shell per cube),
+/// outward oriented.
+fn cubes_obj(cubes: &[([f64; 3], f64)]) -> String {
+    let mut s = String::new();
+    for (c, (o, a)) in cubes.iter().enumerate() {
+        for k in 0..8 {
+            let (x, y, z) = (k & 1, k >> 1 & 1, k >> 2 & 1);
+            // Corners in the order 1 (0,0,0), 2 (1,0,0), 3 (1,1,0), 4 (0,1,0), then z = 1.
+            let (x, y) = [(0, 0), (1, 0), (1, 1), (0, 1)][x + 2 * y];
+            s += &format!(
+                "v {} {} {}\n",
+                o[0] + x as f64 * a,
+                o[1] + y as f64 * a,
+                o[2] + z as f64 * a
+            );
+        }
+        let b = 8 * c;
+        for f in [
+            [1, 3, 2],
+            [1, 4, 3],
+            [5, 6, 7],
+            [5, 7, 8],
+            [1, 2, 6],
+            [1, 6, 5],
+            [4, 8, 7],
+            [4, 7, 3],
+            [1, 5, 8],
+            [1, 8, 4],
+            [2, 3, 7],
+            [2, 7, 6],
+        ] {
+            s += &format!("f {} {} {}\n", b + f[0], b + f[1], b + f[2]);
+        }
+    }
+    s
+}
+
+/// A surface-file scene for `path` with the geometry's extra keys and `neighbours`.
+fn surface_scene(path: &str, keys: &str, neighbours: usize) -> String {
+    format!(
+        "[tissue]\nneighbours = {neighbours}\ngeometry = {{ kind = \"obj\", path = \"{path}\", \
+         {keys} }}\n[material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n"
+    )
+}
+
+/// A 1 m cube of 8 vertices kept as nodes (`surface = "vertices"`) at a 0.1 m spacing:
+/// each corner is 0.17 m from the nearest interior node, whose 6 nearest are all at 0.1 or
+/// 0.14 m, so with 6 neighbours no node lists a corner back. It used to build with 8
+/// detached corners; now it is an error naming the node, where it is and its live count.
+#[test]
+fn a_node_without_live_neighbours_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("cube.obj"), cubes_obj(&[([0.0; 3], 1.0)])).unwrap();
+    let vertices = "spacing = 0.1, surface = \"vertices\"";
+    let (key, msg) = key_and_message(&surface_scene("cube.obj", vertices, 6), dir.path());
+    assert_eq!(key, "tissue.geometry.spacing", "{msg}");
+    for part in ["node 0 at (0.0000e0, 0.0000e0, 0.0000e0) m", "0 live neighbours"] {
+        assert!(msg.contains(part), "{part:?} missing: {msg}");
+    }
+    // With the default 18 neighbours, or resampled, every node keeps live neighbours.
+    for (keys, k) in [(vertices, 18), ("spacing = 0.1", 6)] {
+        let t = build(&surface_scene("cube.obj", keys, k), dir.path()).unwrap();
+        assert!(t.neighbours.stats(t.n_mesh).min >= 1, "{keys}, {k}");
+    }
+}

@@ -10,6 +10,25 @@
 
 use crate::scene::WeightKernel;
 
+/// Fewest live neighbours (non-zero weight) a mesh node must keep. With none it feels no
+/// elastic force and leaves the body; [`crate::tissue::Tissue::from_cloud`] refuses such a
+/// scene. One or two live neighbours hold a node loosely (a pendulum on its springs, a
+/// rank-deficient moment matrix, which the continuum models pseudo-invert); the tips of a
+/// coarse surface kept with `surface = "vertices"` and `neighbours = 6` have one.
+pub const MIN_LIVE_NEIGHBOURS: usize = 1;
+
+/// A node with fewer than [`MIN_LIVE_NEIGHBOURS`] live neighbours.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoorNode {
+    /// The node.
+    pub node: usize,
+    /// Its live slots (non-zero weight).
+    pub live: usize,
+    /// Its slots whose neighbour lists it back (live, or zero only by the kernel's support
+    /// or f32 rounding).
+    pub mutual: usize,
+}
+
 /// Neighbour rows of all allocated nodes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Neighbours {
@@ -117,6 +136,24 @@ impl Neighbours {
         }
         st.mean /= n.max(1) as f64;
         st
+    }
+
+    /// The first of the first `n` nodes with fewer than `min` live slots.
+    pub fn first_poor(&self, n: usize, min: usize) -> Option<PoorNode> {
+        let node = (0..n).find(|&i| self.live(i).count() < min)?;
+        let (idx, _) = self.row(node);
+        let mutual = idx
+            .iter()
+            .filter(|&&j| {
+                let j = j as usize;
+                j < n && j != node && self.row(j).0.contains(&(node as u32))
+            })
+            .count();
+        Some(PoorNode {
+            node,
+            live: self.live(node).count(),
+            mutual,
+        })
     }
 
     /// Checks the invariant every model relies on: for the first `n` nodes, every non-zero
@@ -418,6 +455,34 @@ mod tests {
             let l = kernel_length(&mut d);
             assert!((l / (2f64.sqrt() * a) - 1.0).abs() < 1e-12, "node {i}: {l}");
         }
+    }
+
+    /// A point 1.7 spacings off the corner of a lattice is nobody's neighbour with K = 6;
+    /// zeroing a mutual pair's weights leaves it mutual but not live.
+    #[test]
+    fn poor_nodes_are_found_with_their_mutual_count() {
+        let mut pts: Vec<[f64; 3]> = (0..27)
+            .map(|i| [(i % 3) as f64, ((i / 3) % 3) as f64, (i / 9) as f64])
+            .collect();
+        let nb = Neighbours::build(&pts, 6, WeightKernel::default(), 27);
+        assert_eq!(nb.first_poor(27, MIN_LIVE_NEIGHBOURS), None);
+        pts.push([-1.0, -1.0, -1.0]);
+        let nb = Neighbours::build(&pts, 6, WeightKernel::default(), 28);
+        let poor = nb.first_poor(28, MIN_LIVE_NEIGHBOURS).unwrap();
+        assert_eq!((poor.node, poor.live, poor.mutual), (27, 0, 0));
+        let mut nb = Neighbours::build(&pts[..27], 6, WeightKernel::default(), 27);
+        for slot in 0..6 {
+            let j = nb.index[slot] as usize;
+            nb.weight[slot] = 0.0;
+            for s in j * 6..(j + 1) * 6 {
+                if nb.index[s] == 0 {
+                    nb.weight[s] = 0.0;
+                }
+            }
+        }
+        let poor = nb.first_poor(27, MIN_LIVE_NEIGHBOURS).unwrap();
+        assert_eq!((poor.node, poor.live), (0, 0));
+        assert!(poor.mutual >= 3, "{poor:?}");
     }
 
     #[test]

@@ -7,7 +7,7 @@ use crate::error::{GeometryError, SceneError};
 use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
 use crate::models::{ArrayInfo, ShapeInfo};
-use crate::neighbours::Neighbours;
+use crate::neighbours::{Neighbours, MIN_LIVE_NEIGHBOURS};
 use crate::scene::{
     MassSpringParams, Material, NodeMasses, Scene, SpringShare, TimeStep, AUTO_DT_SAFETY,
 };
@@ -92,6 +92,7 @@ impl Tissue {
                 n,
             );
         }
+        check_live_neighbours(scene, &neighbours, &cloud.positions)?;
         let rho = scene.tissue.density;
         let (masses, node_mass) = match scene.tissue.masses {
             NodeMasses::Cell => (
@@ -234,6 +235,47 @@ impl Tissue {
         out.extend(self.shape.arrays());
         out
     }
+}
+
+/// An error naming the first node with fewer than [`MIN_LIVE_NEIGHBOURS`] live
+/// neighbours: `tissue.weight.support` when its mutual neighbours all got weight 0 from
+/// the kernel, else `tissue.geometry.spacing` (none of its nearest nodes lists it back:
+/// the nodes around it are much closer to each other than to it).
+fn check_live_neighbours(
+    scene: &Scene,
+    neighbours: &Neighbours,
+    positions: &[[f64; 3]],
+) -> Result<(), SceneError> {
+    let n = positions.len();
+    let Some(poor) = neighbours.first_poor(n, MIN_LIVE_NEIGHBOURS) else {
+        return Ok(());
+    };
+    let p = positions[poor.node];
+    let what = format!(
+        "node {} at ({:.4e}, {:.4e}, {:.4e}) m has {} live neighbours of {} slots (at least          {MIN_LIVE_NEIGHBOURS} needed, or it feels no elastic force and leaves the body)",
+        poor.node,
+        p[0],
+        p[1],
+        p[2],
+        poor.live,
+        scene.tissue.neighbours
+    );
+    Err(if poor.mutual > poor.live {
+        SceneError::invalid(
+            "tissue.weight.support",
+            format!(
+                "{what}: {} of its neighbours list it back but lie outside the kernel's                  support; use a larger `support`",
+                poor.mutual
+            ),
+        )
+    } else {
+        SceneError::invalid(
+            "tissue.geometry.spacing",
+            format!(
+                "{what}: none of its nearest nodes counts it among their own nearest, which                  are much closer to each other than to it (with `surface = \"vertices\"`,                  a surface vertex far from the interior lattice); use `surface = \"resample\"`,                  a spacing nearer the distance between its nodes, or more `tissue.neighbours`"
+            ),
+        )
+    })
 }
 
 /// The held sets and loads of a scene, and which nodes get inverse mass 0 (held in all
