@@ -40,7 +40,12 @@ fn a_box_beyond_the_memory_limit_names_the_spacing_and_the_override() {
     let text = box_scene("min = [0, 0, 0], max = [1, 1, 1], spacing = 0.004", "");
     let (key, msg) = key_and_message(&text, Path::new("."));
     assert_eq!(key, "tissue.geometry.spacing", "{msg}");
-    for part in ["1.581e7 nodes", "GiB", "run.max_memory_gib", "spacing 0.004"] {
+    for part in [
+        "1.581e7 nodes",
+        "GiB",
+        "run.max_memory_gib",
+        "spacing 0.004",
+    ] {
         assert!(msg.contains(part), "{part:?} missing: {msg}");
     }
     // The estimate itself, without building anything, with a larger limit.
@@ -107,7 +112,10 @@ fn a_surface_scaled_to_billions_of_nodes_names_the_scale() {
                 stiffness = 100.0\n";
     let (key, msg) = key_and_message(text, Path::new("scenes"));
     assert_eq!(key, "tissue.geometry.scale", "{msg}");
-    assert!(msg.contains("nodes") && msg.contains("run.max_memory_gib"), "{msg}");
+    assert!(
+        msg.contains("nodes") && msg.contains("run.max_memory_gib"),
+        "{msg}"
+    );
     // The same ball at its own size builds.
     let ok = text.replace(", scale = 200.0", "");
     assert!(build(&ok, Path::new("scenes")).unwrap().n_mesh > 500);
@@ -190,7 +198,10 @@ fn a_node_without_live_neighbours_is_an_error_naming_it() {
     let vertices = "spacing = 0.1, surface = \"vertices\"";
     let (key, msg) = key_and_message(&surface_scene("cube.obj", vertices, 6), dir.path());
     assert_eq!(key, "tissue.geometry.spacing", "{msg}");
-    for part in ["node 0 at (0.0000e0, 0.0000e0, 0.0000e0) m", "0 live neighbours"] {
+    for part in [
+        "node 0 at (0.0000e0, 0.0000e0, 0.0000e0) m",
+        "0 live neighbours",
+    ] {
         assert!(msg.contains(part), "{part:?} missing: {msg}");
     }
     // With the default 18 neighbours, or resampled, every node keeps live neighbours.
@@ -198,4 +209,53 @@ fn a_node_without_live_neighbours_is_an_error_naming_it() {
         let t = build(&surface_scene("cube.obj", keys, k), dir.path()).unwrap();
         assert!(t.neighbours.stats(t.n_mesh).min >= 1, "{keys}, {k}");
     }
+}
+
+/// The shipped 10 cm ball (`scenes/meshes/sphere.obj`) scaled by 1e30 or 1e-30, with
+/// the spacing as given or scaled along: the body is then 1e29 m or 1e-31 m across, far
+/// outside what f32 positions, volumes and masses can carry. Each is an error naming
+/// `scale`, never a panic or a run with meaningless rounding.
+#[test]
+fn absurd_surface_scales_name_the_scale() {
+    for (scale, spacing) in [(1e30, 0.01), (1e30, 1e28), (1e-30, 0.01), (1e-30, 1e-32)] {
+        let text = surface_scene(
+            "meshes/sphere.obj",
+            &format!("spacing = {spacing:e}, scale = {scale:e}"),
+            16,
+        );
+        let r = std::panic::catch_unwind(|| key_and_message(&text, Path::new("scenes")));
+        let (key, msg) = r.unwrap_or_else(|_| panic!("scale {scale}, spacing {spacing}"));
+        assert_eq!(
+            key, "tissue.geometry.scale",
+            "scale {scale}, spacing {spacing}: {msg}"
+        );
+    }
+}
+
+/// Boxes and spacings outside 1e-9 to 1e6 m name the key: the box's side, its spacing or
+/// its node count (a tiny box of many nodes), and the scaled-along surface's spacing.
+#[test]
+fn lengths_beyond_f32_name_the_key() {
+    let cases = [
+        (
+            "min = [0, 0, 0], max = [1e7, 1, 1], nodes = 639",
+            "tissue.geometry.max",
+        ),
+        (
+            "min = [0, 0, 0], max = [1e-8, 1e-8, 1e-8], spacing = 1e-10",
+            "tissue.geometry.spacing",
+        ),
+        (
+            "min = [0, 0, 0], max = [1e-8, 1e-8, 1e-8], nodes = 10000",
+            "tissue.geometry.nodes",
+        ),
+    ];
+    for (geometry, want) in cases {
+        let (key, msg) = key_and_message(&box_scene(geometry, ""), Path::new("."));
+        assert_eq!(key, want, "{geometry}: {msg}");
+        assert!(msg.contains("f32"), "{msg}");
+    }
+    let text = surface_scene("meshes/sphere.obj", "spacing = 1e-10", 16);
+    let (key, msg) = key_and_message(&text, Path::new("scenes"));
+    assert_eq!(key, "tissue.geometry.spacing", "{msg}");
 }

@@ -108,6 +108,8 @@ fn build_with(
             spacing,
             nodes,
         }) => {
+            let side = (0..3).map(|a| max[a] - min[a]).fold(0.0, f64::max);
+            check_length("tissue.geometry.max", "the box's longest side", side)?;
             let (count, key, what) = match (spacing, nodes) {
                 (Some(h), _) => (
                     (0..3)
@@ -140,7 +142,22 @@ fn build_with(
                     ))
                 }
             };
-            check_f32_resolution(*min, *max, lattice.spacing, "tissue.geometry.min")?;
+            check_length(
+                if spacing.is_some() {
+                    "tissue.geometry.spacing"
+                } else {
+                    "tissue.geometry.nodes"
+                },
+                "the spacing",
+                lattice.spacing,
+            )?;
+            check_f32_resolution(
+                *min,
+                *max,
+                lattice.spacing,
+                "tissue.geometry.min",
+                "move the body near the origin",
+            )?;
             Ok(lattice.cloud())
         }
         Geometry::Obj(g) | Geometry::Stl(g) | Geometry::Vtk(g) => {
@@ -159,6 +176,25 @@ fn build_with(
                 Geometry::Vtk(_) => obj::load_closed_vtk(&full, g.scale)?,
                 _ => obj::load_closed_surface(&full, g.scale)?,
             };
+            // The body's size after `scale`, then the spacing, then its size in spacings
+            // (a rotation changes it by sqrt(3) at most), then after `translate` its
+            // distance from the origin in spacings: each names the key to change.
+            let (lo, hi) = bounds(&surface.vertices);
+            let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+            check_length(
+                "tissue.geometry.scale",
+                &format!("the body's size after `scale` = {:e}", g.scale),
+                size,
+            )?;
+            check_length("tissue.geometry.spacing", "the spacing", g.spacing)?;
+            let half = 0.5 * size;
+            check_f32_resolution(
+                [-half; 3],
+                [half; 3],
+                g.spacing,
+                "tissue.geometry.spacing",
+                "use a coarser spacing",
+            )?;
             // A rotation keeps the orientation and the volume of the surface.
             let m = g.rotate.map(|r| r.matrix());
             for v in &mut surface.vertices {
@@ -169,7 +205,13 @@ fn build_with(
                 *v = std::array::from_fn(|i| r[i] + g.translate[i]);
             }
             let (lo, hi) = bounds(&surface.vertices);
-            check_f32_resolution(lo, hi, g.spacing, "tissue.geometry.translate")?;
+            check_f32_resolution(
+                lo,
+                hi,
+                g.spacing,
+                "tissue.geometry.translate",
+                "move the body near the origin",
+            )?;
             let points = sampling::Lattice::count(lo, hi, g.spacing, 2);
             let h = g.spacing;
             // Interior nodes fill the volume at one per h^3; resampled surface nodes sit
@@ -239,13 +281,42 @@ fn surface_area(surface: &obj::Surface) -> f64 {
         .sum()
 }
 
+/// Shortest and longest length (m) a body or a spacing may have. Positions, node volumes
+/// (`spacing^3`) and masses are stored in f32 and multiplied by densities and moduli;
+/// within these bounds `spacing^3` stays within 1e-27 to 1e18 m^3, at least 1e11 from
+/// either end of the f32 range, and the bounds are orders of magnitude beyond anything a
+/// continuum model of tissue describes (molecules to planets). A surface scaled by 1e30
+/// or 1e-30 is refused here instead of running on rounded or overflowing numbers.
+pub const LENGTH_RANGE_M: (f64, f64) = (1e-9, 1e6);
+
+/// An error naming `key` when `length` (described by `what`) lies outside
+/// [`LENGTH_RANGE_M`].
+fn check_length(key: &str, what: &str, length: f64) -> Result<(), SceneError> {
+    let (lo, hi) = LENGTH_RANGE_M;
+    if (lo..=hi).contains(&length) {
+        return Ok(());
+    }
+    Err(SceneError::invalid(
+        key,
+        format!(
+            "{what} is {length:.3e} m, outside the {lo:e} to {hi:e} m that f32 positions,              volumes and masses can carry"
+        ),
+    ))
+}
+
 /// Node coordinates at most this many spacings from the origin: positions are stored in
 /// f32 (relative rounding 6e-8), so a node there is placed within 0.6% of a spacing.
 pub const MAX_COORDINATE_SPACINGS: f64 = 1e5;
 
-/// An error naming `key` when the body between `lo` and `hi` lies so far from the origin
-/// (or is so large) that f32 positions cannot resolve spacing `h`.
-fn check_f32_resolution(lo: [f64; 3], hi: [f64; 3], h: f64, key: &str) -> Result<(), SceneError> {
+/// An error naming `key` and saying `cure` when the body between `lo` and `hi` lies so far
+/// from the origin (or is so large) that f32 positions cannot resolve spacing `h`.
+fn check_f32_resolution(
+    lo: [f64; 3],
+    hi: [f64; 3],
+    h: f64,
+    key: &str,
+    cure: &str,
+) -> Result<(), SceneError> {
     let far = lo.iter().chain(&hi).fold(0.0f64, |m, c| m.max(c.abs()));
     if far.is_finite() && far <= MAX_COORDINATE_SPACINGS * h {
         return Ok(());
@@ -255,7 +326,7 @@ fn check_f32_resolution(lo: [f64; 3], hi: [f64; 3], h: f64, key: &str) -> Result
         format!(
             "the body reaches {far:.3e} m from the origin, more than {MAX_COORDINATE_SPACINGS:.0e} \
              spacings ({h:e} m): positions are stored in f32 and could not tell neighbouring \
-             nodes apart; move the body near the origin"
+             nodes apart; {cure}"
         ),
     ))
 }
