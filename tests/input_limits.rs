@@ -259,3 +259,78 @@ fn lengths_beyond_f32_name_the_key() {
     let (key, msg) = key_and_message(&text, Path::new("scenes"));
     assert_eq!(key, "tissue.geometry.spacing", "{msg}");
 }
+
+/// Two cubes in one OBJ overlapping (by half along x, or one inside the other), or a
+/// smaller one inside out beside the first (total volume still positive), are refused naming `tissue.geometry.path`, the winding number and
+/// where; two disjoint cubes, and a cube with an inside-out cube as a cavity, build.
+#[test]
+fn overlapping_or_inverted_shells_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |name: &str, obj: String, surface: &str| {
+        std::fs::write(dir.path().join(name), obj).unwrap();
+        surface_scene(name, &format!("spacing = 0.1, surface = \"{surface}\""), 18)
+    };
+    // Swaps two corners of every face of the shells after the first: inside out.
+    let invert_later = |obj: String| -> String {
+        let mut faces = 0;
+        obj.lines()
+            .map(|l| {
+                if let Some(f) = l.strip_prefix("f ") {
+                    faces += 1;
+                    if faces > 12 {
+                        let v: Vec<&str> = f.split(' ').collect();
+                        return format!("f {} {} {}\n", v[0], v[2], v[1]);
+                    }
+                }
+                format!("{l}\n")
+            })
+            .collect()
+    };
+    for surface in ["resample", "vertices"] {
+        let bad = [
+            (
+                "half.obj",
+                cubes_obj(&[([0.0; 3], 1.0), ([0.5, 0.2, 0.1], 1.0)]),
+                "2",
+            ),
+            (
+                "nested.obj",
+                cubes_obj(&[([0.0; 3], 1.0), ([0.3; 3], 0.4)]),
+                "2",
+            ),
+            (
+                "inverted.obj",
+                invert_later(cubes_obj(&[([0.0; 3], 1.0), ([2.0, 0.0, 0.0], 0.5)])),
+                "-1",
+            ),
+        ];
+        for (name, obj, winding) in bad {
+            let (key, msg) = key_and_message(&scene(name, obj, surface), dir.path());
+            assert_eq!(key, "tissue.geometry.path", "{name}: {msg}");
+            assert!(
+                msg.contains(name) && msg.contains(&format!("is {winding}, not 0 or 1")),
+                "{name}: {msg}"
+            );
+        }
+        let good = [
+            (
+                "apart.obj",
+                cubes_obj(&[([0.0; 3], 1.0), ([1.5, 0.2, 0.1], 1.0)]),
+            ),
+            (
+                "cavity.obj",
+                invert_later(cubes_obj(&[([0.0; 3], 1.0), ([0.3; 3], 0.4)])),
+            ),
+        ];
+        for (name, obj) in good {
+            let t = build(&scene(name, obj, surface), dir.path()).unwrap();
+            let want = if name == "apart.obj" {
+                2.0
+            } else {
+                1.0 - 0.064
+            };
+            // OBJ coordinates are read as f32.
+            assert!((t.volume - want).abs() < 1e-6, "{name}: {}", t.volume);
+        }
+    }
+}

@@ -252,19 +252,16 @@ fn check_live_neighbours(
     };
     let p = positions[poor.node];
     let what = format!(
-        "node {} at ({:.4e}, {:.4e}, {:.4e}) m has {} live neighbours of {} slots (at least          {MIN_LIVE_NEIGHBOURS} needed, or it feels no elastic force and leaves the body)",
-        poor.node,
-        p[0],
-        p[1],
-        p[2],
-        poor.live,
-        scene.tissue.neighbours
+        "node {} at ({:.4e}, {:.4e}, {:.4e}) m has {} live neighbours of {} slots (at least \
+         {MIN_LIVE_NEIGHBOURS} needed, or it feels no elastic force and leaves the body)",
+        poor.node, p[0], p[1], p[2], poor.live, scene.tissue.neighbours
     );
     Err(if poor.mutual > poor.live {
         SceneError::invalid(
             "tissue.weight.support",
             format!(
-                "{what}: {} of its neighbours list it back but lie outside the kernel's                  support; use a larger `support`",
+                "{what}: {} of its neighbours list it back but lie outside the kernel's \
+                 support; use a larger `support`",
                 poor.mutual
             ),
         )
@@ -272,7 +269,10 @@ fn check_live_neighbours(
         SceneError::invalid(
             "tissue.geometry.spacing",
             format!(
-                "{what}: none of its nearest nodes counts it among their own nearest, which                  are much closer to each other than to it (with `surface = \"vertices\"`,                  a surface vertex far from the interior lattice); use `surface = \"resample\"`,                  a spacing nearer the distance between its nodes, or more `tissue.neighbours`"
+                "{what}: none of its nearest nodes counts it among their own nearest, which \
+                 are much closer to each other than to it (with `surface = \"vertices\"`, \
+                 a surface vertex far from the interior lattice); use `surface = \"resample\"`, \
+                 a spacing nearer the distance between its nodes, or more `tissue.neighbours`"
             ),
         )
     })

@@ -253,12 +253,51 @@ fn build_with(
                     ),
                 ));
             }
+            check_shells(&surface, g.spacing, &full)?;
             match g.surface {
                 SurfaceNodes::Resample => Ok(resample::resample(&surface, g.spacing, &full)?),
                 SurfaceNodes::Vertices => Ok(sampling::fill_lattice(&surface, g.spacing)),
             }
         }
     }
+}
+
+/// An error naming `tissue.geometry.path` when the surface's shells overlap, one passes
+/// through itself or one is inside out outside any other: vertical rays one spacing apart
+/// find a winding number other than 0 or 1 ([`ColumnCrossings::first_bad_winding`]).
+/// Such a surface would count the shared volume twice (or negatively) and give nodes
+/// that belong to no consistent body. A cavity (an inside-out shell within another) is
+/// fine; overlaps thinner than the spacing can be missed.
+fn check_shells(surface: &obj::Surface, h: f64, path: &std::path::Path) -> Result<(), SceneError> {
+    let lattice = sampling::Lattice::covering(&surface.vertices, h, 0);
+    let tris: Vec<[[f64; 3]; 3]> = surface
+        .triangles
+        .iter()
+        .map(|t| t.map(|i| surface.vertices[i as usize]))
+        .collect();
+    let origin = [lattice.origin[0], lattice.origin[1]];
+    let columns =
+        ray_columns::ColumnCrossings::build(&tris, origin, h, lattice.dims[0], lattice.dims[1]);
+    let Some((p, winding)) = columns.first_bad_winding(origin, h) else {
+        return Ok(());
+    };
+    let what = if winding > 1 {
+        "shells overlap or the surface passes through itself (a point inside two of them)"
+    } else {
+        "a shell is inside out (its normals point inwards) and lies inside no other shell"
+    };
+    Err(SceneError::invalid(
+        "tissue.geometry.path",
+        format!(
+            "{}: {what}: the winding number at ({:.4e}, {:.4e}, {:.4e}) m is {winding}, not 0 \
+             or 1; merge the shells into one closed surface (a boolean union) or fix their \
+             orientation",
+            path.display(),
+            p[0],
+            p[1],
+            p[2]
+        ),
+    ))
 }
 
 /// The extent `hi - lo` in words, `[x, y, z] m`.
@@ -299,7 +338,8 @@ fn check_length(key: &str, what: &str, length: f64) -> Result<(), SceneError> {
     Err(SceneError::invalid(
         key,
         format!(
-            "{what} is {length:.3e} m, outside the {lo:e} to {hi:e} m that f32 positions,              volumes and masses can carry"
+            "{what} is {length:.3e} m, outside the {lo:e} to {hi:e} m that f32 positions, \
+             volumes and masses can carry"
         ),
     ))
 }

@@ -99,6 +99,36 @@ impl ColumnCrossings {
         out
     }
 
+    /// A point where the winding number is neither 0 nor 1, with that number, if any
+    /// column has one: 2 or more inside two overlapping shells (or a surface through
+    /// itself), negative inside an inside-out shell that no other shell holds. Crossings
+    /// at the same height count together, so shells that touch are fine. The point is
+    /// on column `(i, j)` (`origin + (i, j) * h`), half-way to the next crossing.
+    pub fn first_bad_winding(&self, origin: [f64; 2], h: f64) -> Option<([f64; 3], i32)> {
+        for (c, crossings) in self.columns.iter().enumerate() {
+            let mut winding = 0;
+            let mut next = 0;
+            while next < crossings.len() {
+                let z = crossings[next].0;
+                while next < crossings.len() && crossings[next].0 == z {
+                    winding += crossings[next].1;
+                    next += 1;
+                }
+                if winding != 0 && winding != 1 {
+                    let z_next = crossings.get(next).map_or(z, |n| n.0);
+                    let (i, j) = (c % self.nx, c / self.nx);
+                    let p = [
+                        origin[0] + i as f64 * h,
+                        origin[1] + j as f64 * h,
+                        0.5 * (z + z_next),
+                    ];
+                    return Some((p, winding));
+                }
+            }
+        }
+        None
+    }
+
     /// Inside flags of every point of the grid `origin + (i, j, k) * h` with `dims` points
     /// (x fastest), by one column cast.
     pub fn inside_grid(
@@ -161,6 +191,30 @@ fn top_left(u: [f64; 3], v: [f64; 3]) -> bool {
 mod tests {
     use super::*;
     use crate::geometry::box_lattice::BoxLattice;
+
+    /// Boxes stacked face to face keep the winding at 0 or 1 (crossings at the same
+    /// height count together); boxes overlapping by half reach 2.
+    #[test]
+    fn overlapping_boxes_give_winding_two_and_touching_ones_do_not() {
+        let corners = |lo: [f64; 3], hi: [f64; 3]| {
+            BoxLattice::with_spacing(lo, hi, 0.5)
+                .cloud()
+                .triangle_corners()
+        };
+        let (h, origin) = (0.25, [0.125, 0.125]);
+        let mut tris = corners([0.0; 3], [1.0; 3]);
+        tris.extend(corners([0.0, 0.0, 1.0], [1.0, 1.0, 2.0]));
+        assert_eq!(
+            ColumnCrossings::build(&tris, origin, h, 4, 4).first_bad_winding(origin, h),
+            None
+        );
+        let mut tris = corners([0.0; 3], [1.0; 3]);
+        tris.extend(corners([0.0, 0.0, 0.5], [1.0, 1.0, 1.5]));
+        let (p, w) = ColumnCrossings::build(&tris, origin, h, 4, 4)
+            .first_bad_winding(origin, h)
+            .unwrap();
+        assert_eq!((p, w), ([0.125, 0.125, 0.75], 2));
+    }
 
     /// Columns through the edges and vertices of a box's triangulation (the grid is
     /// aligned with it) still count every point once: the winding number is 0 or 1.
