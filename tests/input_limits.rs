@@ -45,6 +45,7 @@ fn a_box_beyond_the_memory_limit_names_the_spacing_and_the_override() {
         "GiB",
         "run.max_memory_gib",
         "spacing 0.004",
+        "choose a coarser",
     ] {
         assert!(msg.contains(part), "{part:?} missing: {msg}");
     }

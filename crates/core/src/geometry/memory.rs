@@ -121,7 +121,15 @@ pub fn check_memory(
             "fewer `tissue.neighbours`".to_string(),
         )
     } else {
-        (mesh.key.to_string(), format!("a smaller `{}`", mesh.key))
+        let cure = match mesh.key {
+            "tissue.geometry.spacing" => "a coarser `tissue.geometry.spacing`".to_string(),
+            "tissue.geometry.scale" => {
+                "a smaller `tissue.geometry.scale` (0.001 for a file in millimetres)".to_string()
+            }
+            "tissue.geometry.nodes" => "fewer `tissue.geometry.nodes`".to_string(),
+            other => format!("a smaller `{other}`"),
+        };
+        (mesh.key.to_string(), cure)
     };
     let extra = if extra_nodes > 0.0 {
         format!(" and {extra_nodes:.3e} node slots for `{extra_key}`")
