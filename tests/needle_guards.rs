@@ -124,3 +124,17 @@ fn a_friction_law_that_lets_the_tissue_run_ahead_stops_the_run() {
         other => panic!("expected NodesLost, got {other:?}"),
     }
 }
+
+/// A needle whose length over spacing asks for billions of node slots is refused before
+/// anything is allocated, naming the key.
+#[test]
+fn a_needle_needing_billions_of_slots_names_its_spacing() {
+    let s = scene(&[("length =", "length = 0.1\nspacing = 1e-12")]);
+    match Simulation::prepare(&s) {
+        Err(e) => assert!(
+            e.to_string().contains("needle.spacing") && e.to_string().contains("bytes"),
+            "{e}"
+        ),
+        Ok(_) => panic!("a needle of 1e11 slots was built"),
+    }
+}

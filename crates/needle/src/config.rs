@@ -185,7 +185,7 @@ impl NeedleConfig {
     /// added before the Tip node is re-added.
     pub fn node_slots(&self, h: f64) -> usize {
         // (+1: the exit node of a needle pushed through the far surface.)
-        (self.length / h).ceil() as usize + 4
+        ((self.length / h).ceil() as usize).saturating_add(4)
     }
 
     /// Checks the radius against the node spacing `h`: the shaft must be thinner than

@@ -515,7 +515,13 @@ impl Simulation {
             Some(t) => Some(NeedleConfig::from_table(t)?),
             None => None,
         };
-        let cloud = geometry::build(&scene.tissue.geometry, &scene.base_dir)?;
+        // The needle's slots enter the memory estimate before anything is allocated (with
+        // its own spacing; the mesh spacing is known only after the build, checked below).
+        let given = config
+            .as_ref()
+            .and_then(|c| c.spacing.map(|h| c.length / h + 4.0))
+            .unwrap_or(0.0);
+        let cloud = geometry::build_checked(scene, given, "needle.spacing")?;
         let rest = cloud.positions.clone();
         let mesh_spacing = (cloud.volume / rest.len().max(1) as f64).cbrt();
         let spacing = config
@@ -529,6 +535,19 @@ impl Simulation {
             }
             None => 0.0,
         };
+        if let Some(c) = &config {
+            let key = if c.spacing.is_some() {
+                "needle.spacing"
+            } else {
+                "needle.length"
+            };
+            geometry::check_memory(
+                scene,
+                &geometry::MeshEstimate::built(rest.len()),
+                c.length / spacing + 4.0,
+                key,
+            )?;
+        }
         let extra = config.as_ref().map_or(0, |c| c.node_slots(spacing));
         let tissue = Tissue::from_cloud(scene, cloud, extra)?;
         let editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
