@@ -73,8 +73,20 @@ struct NodeGrid {
 }
 
 impl NodeGrid {
+    /// Cells of side `cell`, widened so that there are at most about two cells per node:
+    /// a body far larger than its nodes' spacing (a thin spike of a surface with few
+    /// vertices) would otherwise make every query walk a vast empty grid.
     fn new(nodes: &[[f64; 3]], cell: f64) -> NodeGrid {
         let (lo, hi) = super::bounds(nodes);
+        let cells = (0..3)
+            .map(|a| ((hi[a] - lo[a]) / cell).max(0.0) + 1.0)
+            .product::<f64>();
+        let most = 2.0 * nodes.len().max(4) as f64;
+        let cell = if cells > most {
+            cell * (cells / most).cbrt()
+        } else {
+            cell
+        };
         let dims: [usize; 3] =
             std::array::from_fn(|a| ((hi[a] - lo[a]) / cell).floor().max(0.0) as usize + 1);
         let mut bins = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
@@ -116,16 +128,17 @@ impl NodeGrid {
                     break;
                 }
             }
-            for dz in -r..=r {
-                for dy in -r..=r {
-                    for dx in -r..=r {
-                        if dx.abs().max(dy.abs()).max(dz.abs()) != r {
+            // The shell's offsets, clipped to the grid (a long thin grid is not walked
+            // through its whole cube of offsets).
+            let span = |a: usize| (-r).max(-c[a])..=r.min(self.dims[a] as i64 - 1 - c[a]);
+            for dz in span(2) {
+                for dy in span(1) {
+                    let full_row = dz.abs() == r || dy.abs() == r;
+                    for dx in span(0) {
+                        if !full_row && dx.abs() != r {
                             continue;
                         }
                         let q = [c[0] + dx, c[1] + dy, c[2] + dz];
-                        if (0..3).any(|a| q[a] < 0 || q[a] >= self.dims[a] as i64) {
-                            continue;
-                        }
                         for &n in &self.bins[self.flat(q)] {
                             let x = nodes[n as usize];
                             let d2 = (0..3).map(|a| (x[a] - p[a]).powi(2)).sum::<f64>();

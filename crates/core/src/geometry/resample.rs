@@ -39,7 +39,19 @@ pub fn resample(surface: &Surface, h: f64, path: &Path) -> Result<NodeCloud, Geo
     let [nx, ny, nz] = dims;
     let inside = ColumnCrossings::inside_grid(&tris, lattice.origin, h, dims);
     let bins = TriangleBins::new(tris, h);
-    let topo = regularise(&inside, dims);
+    let mut topo = regularise(&inside, dims);
+    // The lattice has two layers of margin around the vertices, so its outermost layer is
+    // outside; a ray crossing counted wrongly (a grazing hit on a distorted mesh) must not
+    // put a point there, or the quads below would reach past the lattice.
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                if i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1 {
+                    topo[i + nx * (j + ny * k)] = false;
+                }
+            }
+        }
+    }
 
     // One vertex per mixed cube, at the mean edge crossing projected onto the surface.
     let cube_index = |i: usize, j: usize, k: usize| i + (nx - 1) * (j + (ny - 1) * k);
