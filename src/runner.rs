@@ -57,9 +57,12 @@ pub enum RunError {
         /// Step of the last checkpoint written, if any.
         checkpoint: Option<u64>,
     },
-    /// A checkpoint cannot be written or resumed from, or `checkpoint_every` is 0.
-    #[error("{0}")]
-    Checkpoint(String),
+    /// A checkpoint cannot be written or resumed from.
+    #[error(transparent)]
+    Checkpoint(#[from] needlesim_needle::CheckpointError),
+    /// `checkpoint_every` is 0.
+    #[error("checkpoint_every must be at least 1 step")]
+    CheckpointEvery,
 }
 
 impl From<SimulationError> for RunError {
@@ -68,7 +71,7 @@ impl From<SimulationError> for RunError {
         match e {
             SimulationError::Scene(s) => RunError::Scene(s),
             SimulationError::Sim(s) => RunError::Sim(s),
-            SimulationError::Checkpoint(c) => RunError::Checkpoint(c.to_string()),
+            SimulationError::Checkpoint(c) => RunError::Checkpoint(c),
             other => RunError::Needle(other),
         }
     }
@@ -411,15 +414,10 @@ pub fn run_scene(
     let start = Instant::now();
     let checkpoint_path = options.out_dir.join(CHECKPOINT_FILE);
     if options.checkpoint_every == Some(0) {
-        return Err(RunError::Checkpoint(
-            "checkpoint_every must be at least 1 step".into(),
-        ));
+        return Err(RunError::CheckpointEvery);
     }
     let checkpoint = if options.resume {
-        Some(
-            needlesim_needle::Checkpoint::read(&checkpoint_path)
-                .map_err(|e| RunError::Checkpoint(e.to_string()))?,
-        )
+        Some(needlesim_needle::Checkpoint::read(&checkpoint_path)?)
     } else {
         None
     };
@@ -476,8 +474,7 @@ pub fn run_scene(
                         .map_err(io_error(&options.out_dir))?;
                     let mut c = sim.checkpoint()?;
                     c.scene = options.scene_text.clone();
-                    c.write(&checkpoint_path)
-                        .map_err(|e| RunError::Checkpoint(e.to_string()))?;
+                    c.write(&checkpoint_path)?;
                     last_checkpoint = Some(done);
                 }
             }
