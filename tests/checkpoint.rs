@@ -224,6 +224,9 @@ fn the_cli_resumes_from_the_checkpoint_and_writes_the_same_files() {
         "needle_force.csv".into(),
         "surface.pvd".into(),
     ];
+    if a.join("reactions.csv").exists() {
+        files.push("reactions.csv".into());
+    }
     files.extend(listing(&a).into_iter().map(|n| format!("surface/{n}")));
     for f in files {
         let (x, y) = (
