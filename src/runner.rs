@@ -97,10 +97,10 @@ pub struct RunOptions {
     /// Writes `checkpoint.bin` into the output folder at the first frame at or after every
     /// this many steps (atomically: an interruption leaves the previous one intact).
     pub checkpoint_every: Option<u64>,
-    /// Continues the run from `checkpoint.bin` in the output folder (taken with the same
-    /// scene; `run.steps` may be larger): the files keep their rows and frames before the
-    /// checkpoint's step and go on from there.
-    pub resume: bool,
+    /// Continues the run from this checkpoint (read from `checkpoint.bin` in the output
+    /// folder; taken with the same scene, `run.steps` may be larger): the files keep their
+    /// rows and frames before the checkpoint's step and go on from there.
+    pub resume: Option<needlesim_needle::Checkpoint>,
     /// The scene's text, stored in the checkpoints so that they are enough to resume.
     pub scene_text: Option<needlesim_needle::SceneText>,
 }
@@ -116,7 +116,7 @@ impl RunOptions {
             write_files: true,
             stop: None,
             checkpoint_every: None,
-            resume: false,
+            resume: None,
             scene_text: None,
         }
     }
@@ -416,20 +416,15 @@ pub fn run_scene(
     if options.checkpoint_every == Some(0) {
         return Err(RunError::CheckpointEvery);
     }
-    let checkpoint = if options.resume {
-        Some(needlesim_needle::Checkpoint::read(&checkpoint_path)?)
-    } else {
-        None
-    };
     let prep = Simulation::prepare(scene)?;
     let dt = prep.tissue.step.dt as f64;
     let (backend, warning) =
         make_backend(scene, prep.tissue.clone(), options.backend, options.threads)?;
-    let mut sim = match checkpoint {
-        Some(c) => prep.resume(backend, c)?,
+    let mut sim = match &options.resume {
+        Some(c) => prep.resume(backend, c.clone())?,
         None => prep.start(backend)?,
     };
-    let resume_at = options.resume.then(|| sim.steps());
+    let resume_at = options.resume.is_some().then(|| sim.steps());
     let has_needle = sim.needle().is_some();
     let total = options.steps.unwrap_or(scene.run.steps);
     let every = scene.run.output_every;

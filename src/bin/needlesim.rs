@@ -238,11 +238,18 @@ fn run(cli: Cli) -> Result<()> {
             checkpoint_every,
             resume,
         } => {
-            let (scene, stem, text) = match (&scene, &resume) {
+            // The checkpoint to continue from, read once.
+            let checkpoint = resume
+                .as_ref()
+                .map(|dir| Checkpoint::read(dir.join(needlesim::CHECKPOINT_FILE)))
+                .transpose()?;
+            let (scene, stem, text) = match (&scene, &checkpoint, &resume) {
                 // Resuming without a scene: the one the checkpoint carries.
-                (None, Some(dir)) => {
-                    let c = Checkpoint::read(dir.join(needlesim::CHECKPOINT_FILE))?;
-                    let text = c.scene.ok_or(needlesim::needle::CheckpointError::NoScene)?;
+                (None, Some(c), Some(dir)) => {
+                    let text = c
+                        .scene
+                        .clone()
+                        .ok_or(needlesim::needle::CheckpointError::NoScene)?;
                     let stem = dir
                         .file_name()
                         .map(|s| s.to_string_lossy().into_owned())
@@ -273,7 +280,7 @@ fn run(cli: Cli) -> Result<()> {
                 write_files: true,
                 stop: Some(stop),
                 checkpoint_every,
-                resume: resume.is_some(),
+                resume: checkpoint,
                 scene_text: Some(text),
             };
             let total = steps.unwrap_or(scene.run.steps);

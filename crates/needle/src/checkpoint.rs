@@ -143,11 +143,6 @@ pub struct Checkpoint {
 }
 
 impl Checkpoint {
-    /// Active nodes the editor says there are.
-    pub(crate) fn editor_n_active(&self) -> usize {
-        self.editor.n_active()
-    }
-
     /// Simulated time at the checkpoint, s.
     pub fn time(&self) -> f64 {
         self.sim.time

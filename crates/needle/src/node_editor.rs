@@ -572,13 +572,6 @@ pub(crate) struct EditorSnapshot {
     log: Vec<Addition>,
 }
 
-impl EditorSnapshot {
-    /// Nodes active in the snapshot.
-    pub(crate) fn n_active(&self) -> usize {
-        self.n_active
-    }
-}
-
 impl NodeEditor {
     /// The changing state.
     pub(crate) fn snapshot(&self) -> EditorSnapshot {

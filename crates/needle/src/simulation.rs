@@ -721,13 +721,11 @@ impl Simulation {
             return Err(corrupt("the scene fingerprint has another length".into()).into());
         }
         let cap = self.backend.capacity();
-        let editor_n_active = c.editor_n_active();
         let bs = c.backend;
         if [&bs.positions, &bs.velocities, &bs.forces]
             .iter()
             .any(|a| a.len() != cap)
             || bs.n_active > cap
-            || bs.n_active != editor_n_active
         {
             return Err(corrupt(format!("node arrays do not fit {cap} node slots")).into());
         }
@@ -742,6 +740,11 @@ impl Simulation {
         self.editor
             .restore(c.editor)
             .map_err(|what| corrupt(format!("the {what} do not fit this tissue")))?;
+        if self.editor.n_active() != bs.n_active {
+            return Err(
+                corrupt("the editor and the backend count other active nodes".into()).into(),
+            );
+        }
         let b = self.backend.as_mut();
         b.write(NodeField::Position, 0, &bs.positions)?;
         b.write(NodeField::Velocity, 0, &bs.velocities)?;
