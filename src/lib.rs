@@ -16,6 +16,7 @@
 
 #![warn(missing_docs)]
 
+pub mod frame;
 pub mod info;
 pub mod needle_output;
 pub mod output;
@@ -23,6 +24,7 @@ pub mod plot;
 pub mod report;
 pub mod runner;
 
+pub use frame::FrameMetrics;
 pub use info::SceneInfo;
 pub use needlesim_core as core;
 pub use needlesim_core::{
@@ -31,9 +33,7 @@ pub use needlesim_core::{
 };
 pub use needlesim_gpu as gpu;
 pub use needlesim_needle as needle;
-pub use runner::{
-    make_backend, run_scene, FrameMetrics, RunError, RunOptions, RunSummary, CHECKPOINT_FILE,
-};
+pub use runner::{make_backend, run_scene, RunError, RunOptions, RunSummary, CHECKPOINT_FILE};
 
 /// The default scene of `needlesim run` without a scene file: the paper's experiment, a
 /// needle moved 15 cm into a 639-node cube and rotated 25 degrees (local shape matching).

@@ -6,7 +6,7 @@
 //! rewritten (write, then rename) after every frame, so a run that stops early, however it
 //! stops, leaves readable files up to its last frame.
 
-use crate::runner::FrameMetrics;
+use crate::frame::FrameMetrics;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};

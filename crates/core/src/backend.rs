@@ -113,20 +113,33 @@ pub trait Backend: Send {
 /// `max_speed` m/s.
 pub fn check_bounded<B: Backend + ?Sized>(backend: &mut B, max_speed: f64) -> Result<(), SimError> {
     let n = backend.n_active();
-    let step = backend.steps_taken();
     let mut p = vec![[0.0f32; 4]; n];
     let mut v = vec![[0.0f32; 4]; n];
     backend.read(NodeField::Position, 0..n, &mut p)?;
     backend.read(NodeField::Velocity, 0..n, &mut v)?;
-    for (buf, field) in [(&p, "position"), (&v, "velocity")] {
+    check_arrays(backend.steps_taken(), &p, &v, max_speed)
+}
+
+/// [`check_bounded`] on positions and velocities already read back (an output frame) at
+/// step `step`.
+pub fn check_arrays(
+    step: u64,
+    positions: &[Vec4],
+    velocities: &[Vec4],
+    max_speed: f64,
+) -> Result<(), SimError> {
+    for (buf, field) in [(positions, "position"), (velocities, "velocity")] {
         if let Some(node) = first_non_finite(buf) {
             return Err(SimError::Diverged { step, node, field });
         }
     }
-    let fastest = (0..n)
-        .filter(|&i| p[i][3] > 0.0)
-        .map(|i| {
-            let s = (0..3).map(|a| (v[i][a] as f64).powi(2)).sum::<f64>().sqrt();
+    let fastest = positions
+        .iter()
+        .zip(velocities)
+        .enumerate()
+        .filter(|(_, (p, _))| p[3] > 0.0)
+        .map(|(i, (_, v))| {
+            let s = (0..3).map(|a| (v[a] as f64).powi(2)).sum::<f64>().sqrt();
             (s, i)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0));

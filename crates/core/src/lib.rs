@@ -20,6 +20,7 @@
 
 pub mod backend;
 pub mod boundary;
+mod build_tissue;
 pub mod calibration;
 pub mod cpu;
 pub mod error;
@@ -31,6 +32,7 @@ pub mod neighbours;
 pub mod scene;
 pub mod stability;
 pub mod state;
+pub mod stepper;
 pub mod tissue;
 
 pub use backend::{Backend, NodeField};
@@ -38,4 +40,5 @@ pub use cpu::{CpuBackend, Threading};
 pub use error::{GeometryError, SceneError, SimError};
 pub use math::Vec4;
 pub use scene::{Material, Scene};
+pub use stepper::Stepper;
 pub use tissue::Tissue;

@@ -8,14 +8,12 @@ use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
 use crate::models::{ArrayInfo, ShapeInfo};
 use crate::neighbours::{Neighbours, MIN_LIVE_NEIGHBOURS};
-use crate::scene::{
-    MassSpringParams, Material, NodeMasses, Scene, SpringShare, TimeStep, AUTO_DT_SAFETY,
-};
+use crate::scene::{MassSpringParams, Material, NodeMasses, Scene, SpringShare, TimeStep};
 use crate::state::NodeState;
 
 /// The key memory errors name for the spare node slots: they hold the needle's nodes
 /// (`needle.length` over the needle's spacing).
-const EXTRA_KEY: &str = "needle.length";
+pub(crate) const EXTRA_KEY: &str = "needle.length";
 
 /// Everything a backend needs to simulate the tissue.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,21 +46,15 @@ pub struct Tissue {
 }
 
 impl Tissue {
-    /// Builds the tissue a scene describes, with no room for extra (needle) nodes.
-    pub fn from_scene(scene: &Scene) -> Result<Tissue, SceneError> {
-        Self::from_scene_with_capacity(scene, 0)
-    }
-
-    /// Builds the tissue with `extra` spare node slots after the mesh nodes. The memory
-    /// estimate ([`geometry::check_memory`]) is checked before the nodes are allocated.
-    pub fn from_scene_with_capacity(scene: &Scene, extra: usize) -> Result<Tissue, SceneError> {
-        let cloud = geometry::build_checked(scene, extra as f64, EXTRA_KEY)?;
-        Self::from_cloud(scene, cloud, extra)
-    }
-
-    /// Builds the tissue from an already built node cloud. The memory estimate of its
-    /// nodes and the `extra` slots is checked before the simulation arrays are allocated.
-    pub fn from_cloud(scene: &Scene, cloud: NodeCloud, extra: usize) -> Result<Tissue, SceneError> {
+    /// Builds the simulation arrays from a node cloud with `extra` spare slots, with the
+    /// time step of `physics.dt` in seconds (`"auto"` gets a provisional 1 ms here;
+    /// [`Tissue::from_cloud`] resolves it). The memory estimate of the nodes and the
+    /// `extra` slots is checked before the arrays are allocated.
+    pub(crate) fn assemble(
+        scene: &Scene,
+        cloud: NodeCloud,
+        extra: usize,
+    ) -> Result<Tissue, SceneError> {
         let n = cloud.positions.len();
         let k = scene.tissue.neighbours;
         geometry::check_memory(
@@ -182,25 +174,9 @@ impl Tissue {
             n_fixed,
             boundary,
         };
-        let dt = match scene.physics.dt {
-            TimeStep::Seconds(dt) => dt,
-            TimeStep::Auto => {
-                let mut probe =
-                    crate::cpu::CpuBackend::new(tissue.clone(), crate::cpu::Threading::Parallel)
-                        .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
-                let est = crate::stability::max_eigenvalue(&mut probe, 40)
-                    .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
-                if !est.critical_dt.is_finite() {
-                    return Err(SceneError::invalid(
-                        "physics.dt",
-                        "\"auto\" needs a stiffness to size the step from (no free node \
-                         feels an elastic force); give the step in seconds",
-                    ));
-                }
-                AUTO_DT_SAFETY * est.critical_dt
-            }
-        };
-        tissue.step = crate::integrator::StepParams::new(dt, &scene.physics);
+        if let TimeStep::Seconds(dt) = scene.physics.dt {
+            tissue.step = crate::integrator::StepParams::new(dt, &scene.physics);
+        }
         Ok(tissue)
     }
 

@@ -22,7 +22,7 @@
 //! is enough to resume (the Python `Simulation.load`).
 
 use crate::node_editor::EditorSnapshot;
-use crate::simulation::SimSnapshot;
+use crate::state::NeedleState;
 use needlesim_core::math::Vec4;
 use needlesim_core::Scene;
 use serde::{Deserialize, Serialize};
@@ -33,7 +33,7 @@ use thiserror::Error;
 /// First bytes of a checkpoint file.
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
 /// Format version this build writes and reads. Raised whenever the payload changes.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 const HEADER: usize = MAGIC.len() + 4 + 8 + 8;
 
 /// Why a checkpoint cannot be written, read or restored.
@@ -125,6 +125,16 @@ pub(crate) struct BackendSnapshot {
     pub forces: Vec<Vec4>,
     /// Every shape array, in [`needlesim_core::models::ShapeInfo::bytes`] order.
     pub shape: Vec<Vec<u8>>,
+}
+
+/// The needle simulation's own state and clock.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct SimSnapshot {
+    pub state: NeedleState,
+    /// Whether the scene's script still drives the needle.
+    pub scripted: bool,
+    pub time: f64,
+    pub steps: u64,
 }
 
 /// The whole state of a simulation. Take one with

@@ -27,22 +27,26 @@
 
 pub mod checkpoint;
 pub mod config;
+mod error;
 pub mod friction;
 pub mod needle;
 pub mod node_editor;
+mod nodes;
 pub mod puncture;
 pub mod script;
 pub mod simulation;
+mod splits;
+mod state;
 pub mod surface_query;
 
 pub use checkpoint::{Checkpoint, CheckpointError, SceneText};
 pub use config::NeedleConfig;
+pub use error::SimulationError;
 pub use friction::{FrictionModel, FrictionState, PaperFriction, PerLengthFriction};
 pub use needle::{Needle, NeedleError};
 pub use node_editor::{EditError, NodeEditor};
+pub use nodes::{NeedleForce, NeedleNode, NeedleSample, NodeRole};
 pub use puncture::{PunctureState, Thresholds};
 pub use script::{Keyframe, PoseScript};
-pub use simulation::{
-    NeedleForce, NeedleNode, NeedleSample, NodeRole, Prepared, Simulation, SimulationError,
-};
+pub use simulation::{Prepared, Simulation, MAX_STEP_SPACINGS};
 pub use surface_query::{segment_triangle, SurfaceHit, TriangleGrid};

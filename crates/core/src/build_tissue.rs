@@ -1,0 +1,52 @@
+//! Builds a [`Tissue`] from a scene: the node cloud ([`crate::geometry`]), the simulation
+//! arrays (`Tissue::assemble`), then `physics.dt = "auto"`: [`AUTO_DT_SAFETY`] times the
+//! critical time step that [`crate::stability::max_eigenvalue`] estimates on a CPU probe of
+//! the tissue at its initial state.
+
+use crate::cpu::{CpuBackend, Threading};
+use crate::error::SceneError;
+use crate::geometry::{self, NodeCloud};
+use crate::integrator::StepParams;
+use crate::scene::{Scene, TimeStep, AUTO_DT_SAFETY};
+use crate::tissue::{Tissue, EXTRA_KEY};
+
+impl Tissue {
+    /// Builds the tissue a scene describes, with no room for extra (needle) nodes.
+    pub fn from_scene(scene: &Scene) -> Result<Tissue, SceneError> {
+        Self::from_scene_with_capacity(scene, 0)
+    }
+
+    /// Builds the tissue with `extra` spare node slots after the mesh nodes. The memory
+    /// estimate ([`geometry::check_memory`]) is checked before the nodes are allocated.
+    pub fn from_scene_with_capacity(scene: &Scene, extra: usize) -> Result<Tissue, SceneError> {
+        let cloud = geometry::build_checked(scene, extra as f64, EXTRA_KEY)?;
+        Self::from_cloud(scene, cloud, extra)
+    }
+
+    /// Builds the tissue from an already built node cloud. The memory estimate of its
+    /// nodes and the `extra` slots is checked before the simulation arrays are allocated.
+    pub fn from_cloud(scene: &Scene, cloud: NodeCloud, extra: usize) -> Result<Tissue, SceneError> {
+        let mut tissue = Tissue::assemble(scene, cloud, extra)?;
+        if scene.physics.dt == TimeStep::Auto {
+            let dt = auto_dt(&tissue)?;
+            tissue.step = StepParams::new(dt, &scene.physics);
+        }
+        Ok(tissue)
+    }
+}
+
+/// [`AUTO_DT_SAFETY`] times the critical time step of `tissue` at its initial state.
+fn auto_dt(tissue: &Tissue) -> Result<f64, SceneError> {
+    let mut probe = CpuBackend::new(tissue.clone(), Threading::Parallel)
+        .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
+    let est = crate::stability::max_eigenvalue(&mut probe, 40)
+        .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
+    if !est.critical_dt.is_finite() {
+        return Err(SceneError::invalid(
+            "physics.dt",
+            "\"auto\" needs a stiffness to size the step from (no free node feels an elastic \
+             force); give the step in seconds",
+        ));
+    }
+    Ok(AUTO_DT_SAFETY * est.critical_dt)
+}

@@ -1,0 +1,68 @@
+//! The needle nodes and the needle's per-step record.
+
+use crate::friction::FrictionState;
+use crate::puncture::PunctureState;
+
+/// Role of a needle node.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum NodeRole {
+    /// Where the tip first touched the surface.
+    Surface,
+    /// Added along the shaft during insertion.
+    Shaft,
+    /// At the needle tip.
+    Tip,
+    /// Where the tip reached the far surface from inside.
+    Exit,
+}
+
+/// A needle node.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NeedleNode {
+    /// Node index in the backend.
+    pub index: u32,
+    /// Its role.
+    pub role: NodeRole,
+    /// Friction state.
+    pub friction: FrictionState,
+    /// Axial coordinate from the needle base while sticking, m.
+    pub s: f64,
+    /// Axial force the needle exerted on the node in the last step (friction, and
+    /// cutting at the crack front), N, positive along the needle direction.
+    pub axial: f64,
+    /// The static limit of that force forward in the last step (per-length model), N.
+    pub limit: f64,
+}
+
+/// The force the tissue exerts on the needle in one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct NeedleForce {
+    /// Total force on the needle, N.
+    pub total: [f64; 3],
+    /// Axial component against the needle direction, N: positive when the tissue resists
+    /// insertion, negative when it resists extraction.
+    pub axial: f64,
+    /// Magnitude of the component normal to the shaft, N.
+    pub lateral: f64,
+}
+
+/// One step of the needle's record.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NeedleSample {
+    /// Steps taken.
+    pub step: u64,
+    /// Simulated time, s.
+    pub time: f64,
+    /// Tip position, m.
+    pub tip: [f64; 3],
+    /// Needle direction.
+    pub direction: [f64; 3],
+    /// Force on the needle.
+    pub force: NeedleForce,
+    /// Puncture state after the step.
+    pub state: PunctureState,
+    /// Active nodes.
+    pub active_nodes: usize,
+    /// Needle nodes.
+    pub needle_nodes: usize,
+}

@@ -1,0 +1,74 @@
+//! Needle node constraints (paper section 5.4): a sticking node, and the pinned Surface or
+//! Exit node while Touching, moves rigidly with the needle (its velocity the needle's at
+//! its axial coordinate); a slipping node is projected onto the shaft and keeps only its
+//! own axial velocity relative to the needle.
+
+use super::{at, vec4, xyz, Simulation};
+use crate::friction::FrictionState;
+use crate::needle::Needle;
+use crate::nodes::{NeedleNode, NodeRole};
+use crate::state::Phase;
+use glam::DVec3;
+use needlesim_core::{NodeField, SimError};
+
+impl Simulation {
+    /// Whether node `n` is held rigidly on the needle this step.
+    pub(super) fn kinematic(&self, n: &NeedleNode) -> bool {
+        self.pinned(n)
+            || n.friction == FrictionState::Stick
+            || (n.role == NodeRole::Tip && self.contact.per_length().is_none())
+    }
+
+    /// The Surface node while Touching the entry, the Exit node while Touching the far
+    /// surface: pinned to the tip in every direction.
+    pub(super) fn pinned(&self, n: &NeedleNode) -> bool {
+        (n.role == NodeRole::Surface && self.state.phase == Phase::Touching)
+            || (n.role == NodeRole::Exit && self.state.phase == Phase::ExitTouching)
+    }
+
+    /// Puts sticking nodes on the needle and slipping nodes onto the shaft.
+    pub(super) fn constrain(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimError> {
+        let m = self.state.nodes.len();
+        self.state.velocities.clear();
+        if m == 0 {
+            return Ok(());
+        }
+        let n0 = self.editor.n_mesh();
+        let mut v = vec![[0.0f32; 4]; m];
+        // Only sliding nodes need their own state; sticking ones follow the needle. The
+        // positions come from the contact update when it read them this step.
+        let mut p = std::mem::take(&mut self.state.positions);
+        if self.state.nodes.iter().any(|n| !self.kinematic(n)) {
+            if p.len() != m {
+                p = vec![[0.0f32; 4]; m];
+                self.backend.read(NodeField::Position, n0..n0 + m, &mut p)?;
+            }
+            self.backend.read(NodeField::Velocity, n0..n0 + m, &mut v)?;
+        } else {
+            p = vec![[0.0f32; 4]; m];
+        }
+        let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
+        let inv_mass = self.editor.inverse_mass();
+        for k in 0..m {
+            let node = self.state.nodes[k];
+            if self.kinematic(&node) {
+                let x = at(now, node.s);
+                let vn = self.needle_velocity(prev, now, node.s);
+                p[k] = vec4(x, 0.0);
+                v[k] = vec4(vn, 0.0);
+            } else {
+                let s = (xyz(p[k]) - base).dot(t);
+                let x = at(now, s);
+                let vn = self.needle_velocity(prev, now, s);
+                let own = xyz(v[k]).dot(t) - vn.dot(t);
+                p[k] = vec4(x, inv_mass);
+                v[k] = vec4(vn + t * own, 0.0);
+            }
+        }
+        self.backend.write(NodeField::Position, n0, &p)?;
+        self.backend.write(NodeField::Velocity, n0, &v)?;
+        self.state.velocities = v;
+        self.state.positions = p;
+        Ok(())
+    }
+}

@@ -1,0 +1,562 @@
+//! The puncture state machine (paper section 5.4): Outside, Touching, Inside, and the far
+//! side (ExitTouching, Exited), with the addition and removal of needle nodes.
+//!
+//! Inside, with `d` the axial distance from the last non-tip node to the tip
+//! ([`shaft_edit`]): a Shaft node is added at `h` past the last node when `d >= 1.5 h` (so
+//! it never lands on the Tip node), the last Shaft node is removed when `d < h / 2`, the
+//! Tip node exists while `d >= h / 4` past the Surface node (added at `h / 2`), and is
+//! removed and re-added (neighbour refresh) every `tip_refresh * h` of tip motion. The
+//! paper adds nodes at the tip when `d > h`; these margins keep any two needle nodes at
+//! least h / 4 apart.
+//!
+//! With the per-length friction model, nodes added inside the tissue start slipping with
+//! the velocity of the tissue at the tip (the shaft slides past the tissue it reaches), and
+//! a refreshed Tip node keeps its friction state, velocity and elastic offset: the load
+//! the tip carries is not released by a refresh, so the force has no sawtooth at the
+//! refresh period.
+//!
+//! A needle node that the tissue pushes ahead of an advancing tip (the shaft no longer
+//! holding the tissue it is in) stops the run with [`SimulationError::NodesLost`].
+
+use super::{at, vec4, Simulation};
+use crate::friction::FrictionState;
+use crate::needle::Needle;
+use crate::node_editor::EditError;
+use crate::nodes::{NeedleNode, NodeRole};
+use crate::puncture::{mean_cone_angle, TouchingOutcome};
+use crate::state::Phase;
+use crate::SimulationError;
+use glam::DVec3;
+use needlesim_core::NodeField;
+
+/// Most needle node spacings a needle point may move in one step while in contact.
+/// Node addition and removal handle several nodes per step (tested at 2.7 spacings a
+/// step); at 8 spacings a step (a 90 m/s needle in the shipped scenes) the tip crossed the
+/// whole body within the Touching phase and nodes were placed past the far surface until
+/// the slots ran out. A haptic pose glitch is usually far larger.
+pub const MAX_STEP_SPACINGS: f64 = 4.0;
+
+/// The next edit of the needle node stack while Inside.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ShaftEdit {
+    /// Take the Tip node off (to edit the shaft behind it, or because the tip is too close
+    /// to the last node); it is re-added with its load.
+    LiftTip,
+    /// Remove the last Shaft node (the needle was pulled back past it).
+    RemoveShaft,
+    /// Add a Shaft node `h` past the last node.
+    AddShaft,
+    /// Add the Tip node at the tip.
+    AddTip,
+    /// The tip was pulled back out past the Surface node.
+    LeaveSurface,
+    /// Nothing to change.
+    Keep,
+}
+
+/// The margins: `has_tip` whether the last node is the Tip node, `last` the role of the
+/// last other node, `d` the tip's axial distance past that node, `h` the node spacing.
+pub(crate) fn shaft_edit(has_tip: bool, last: NodeRole, d: f64, h: f64) -> ShaftEdit {
+    let shaft = last == NodeRole::Shaft;
+    if has_tip && (d >= 1.5 * h || (shaft && d < 0.5 * h) || d < 0.25 * h) {
+        ShaftEdit::LiftTip
+    } else if shaft && d < 0.5 * h {
+        ShaftEdit::RemoveShaft
+    } else if d >= 1.5 * h {
+        ShaftEdit::AddShaft
+    } else if !has_tip && d >= 0.5 * h {
+        ShaftEdit::AddTip
+    } else if last == NodeRole::Surface && !has_tip && d < 0.0 {
+        ShaftEdit::LeaveSurface
+    } else {
+        ShaftEdit::Keep
+    }
+}
+
+impl Simulation {
+    fn add(
+        &mut self,
+        role: NodeRole,
+        x: DVec3,
+        s: f64,
+        seeds: &[u32],
+        v: DVec3,
+        friction: FrictionState,
+    ) -> Result<(), EditError> {
+        self.add_with_offset(role, x, s, seeds, v, friction, [0.0; 3])
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn add_with_offset(
+        &mut self,
+        role: NodeRole,
+        x: DVec3,
+        s: f64,
+        seeds: &[u32],
+        v: DVec3,
+        friction: FrictionState,
+        offset: [f64; 3],
+    ) -> Result<(), EditError> {
+        let cand = self.editor.rings(seeds, 2);
+        let index = self.editor.add_node_with_offset(
+            self.backend.as_mut(),
+            x.as_vec3().to_array(),
+            v.as_vec3().to_array(),
+            &cand,
+            offset,
+        )?;
+        self.state.nodes.push(NeedleNode {
+            index,
+            role,
+            friction,
+            s,
+            axial: 0.0,
+            limit: 0.0,
+        });
+        Ok(())
+    }
+
+    /// Removes the newest needle node; removing the Surface or Exit node undoes its split.
+    fn remove(&mut self) -> Result<NeedleNode, EditError> {
+        self.editor.remove_last(self.backend.as_mut())?;
+        let node = self.state.nodes.pop().ok_or(EditError::NothingToRemove)?;
+        if matches!(node.role, NodeRole::Surface | NodeRole::Exit) {
+            let editor = &self.editor;
+            self.state
+                .surface
+                .unsplit(|v| editor.rest_position(v as usize).map(|x| x as f64));
+            self.state.phase = if node.role == NodeRole::Surface {
+                Phase::Outside
+            } else {
+                Phase::Inside
+            };
+        }
+        Ok(node)
+    }
+
+    /// Adds the Surface or Exit node at `point` on surface triangle `id`, pinned to the
+    /// needle (sticking), and splits the triangle around it.
+    fn pin_at_surface(
+        &mut self,
+        role: NodeRole,
+        id: usize,
+        point: DVec3,
+        now: &Needle,
+        v_tip: DVec3,
+    ) -> Result<(), SimulationError> {
+        let corners = self.state.surface.triangles()[id];
+        let s = (point - DVec3::from(now.base())).dot(DVec3::from(now.direction()));
+        self.add(role, point, s, &corners, v_tip, FrictionState::Stick)
+            .map_err(|e| self.edit(e))?;
+        let node = self.state.nodes.last().expect("just added").index;
+        let editor = &self.editor;
+        self.state.surface.split(id, node, |v| {
+            editor.rest_position(v as usize).map(|x| x as f64)
+        });
+        Ok(())
+    }
+
+    /// The first surface triangle the segment `p0 -> p1` crosses, entering or leaving,
+    /// ignoring the triangles around needle nodes.
+    fn surface_crossing(
+        &mut self,
+        p0: DVec3,
+        p1: DVec3,
+        entering: bool,
+    ) -> Result<Option<(usize, DVec3)>, SimulationError> {
+        let skip: Vec<u32> = self.state.nodes.iter().map(|n| n.index).collect();
+        let hit = self
+            .state
+            .surface
+            .crossing(
+                self.backend.as_mut(),
+                p0.to_array(),
+                p1.to_array(),
+                entering,
+                &skip,
+            )
+            .map_err(|e| self.edit(e.into()))?;
+        Ok(hit.map(|(id, p)| (id, DVec3::from(p))))
+    }
+
+    /// Errs when a needle point moved more than [`MAX_STEP_SPACINGS`] node spacings over
+    /// the step while the needle is in contact, or when it enters the body and ends more
+    /// than that past the surface. (A rigid motion interpolated over the step moves the
+    /// points of a segment most at its ends.)
+    fn check_motion(
+        &self,
+        prev: &Needle,
+        now: &Needle,
+        entry: Option<DVec3>,
+    ) -> Result<(), SimulationError> {
+        let dist = |a: [f64; 3], b: DVec3| (DVec3::from(a) - b).length();
+        let (moved, phase) = match (self.state.phase, entry) {
+            (Phase::Outside, None) => return Ok(()),
+            (Phase::Outside, Some(p)) => (dist(now.tip(), p), "entering the body"),
+            (phase, _) => (
+                dist(now.tip(), prev.tip().into()).max(dist(now.base(), prev.base().into())),
+                match phase {
+                    Phase::Touching | Phase::ExitTouching => "touching the surface",
+                    Phase::Exited => "through the body",
+                    _ => "inside the body",
+                },
+            ),
+        };
+        let limit = MAX_STEP_SPACINGS * self.spacing;
+        if moved > limit {
+            return Err(SimulationError::TooFast {
+                step: self.stepper.steps() + 1,
+                moved,
+                limit,
+                phase,
+            });
+        }
+        Ok(())
+    }
+
+    /// The state machine: surface contact, puncture, node addition and removal.
+    pub(super) fn contact(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimulationError> {
+        let t = DVec3::from(now.direction());
+        let tip = DVec3::from(now.tip());
+        let v_tip = self.needle_velocity(prev, now, now.length());
+        self.state.swept_from = prev.tip();
+        if self.state.phase != Phase::Outside {
+            self.check_motion(prev, now, None)?;
+        }
+        match self.state.phase {
+            Phase::Outside => {
+                let hit = self.surface_crossing(prev.tip().into(), tip, true)?;
+                let Some((id, point)) = hit else {
+                    return Ok(());
+                };
+                self.check_motion(prev, now, Some(point))?;
+                self.pin_at_surface(NodeRole::Surface, id, point, now, v_tip)?;
+                self.state.entry.get_or_insert(point.to_array());
+                self.state.phase = Phase::Touching;
+            }
+            Phase::Touching | Phase::ExitTouching => {
+                let exit = self.state.phase == Phase::ExitTouching;
+                let sp = *self
+                    .state
+                    .surface
+                    .last_split()
+                    .expect("Touching has a split triangle");
+                let mut c = [[0.0f32; 4]; 3];
+                self.backend
+                    .read_nodes(NodeField::Position, &sp.original, &mut c)
+                    .map_err(|e| self.edit(e.into()))?;
+                let pinned = at(now, self.state.nodes.last().expect("pinned node").s);
+                let corners = c.map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]);
+                let angle = mean_cone_angle(pinned.to_array(), corners, t.to_array());
+                let mut outcome = self.contact.thresholds.touching(angle);
+                if let Some(f) = self.contact.puncture_force {
+                    outcome = match outcome {
+                        TouchingOutcome::Release => TouchingOutcome::Release,
+                        _ if self.state.pinned_axial > f => TouchingOutcome::Puncture,
+                        _ => TouchingOutcome::Stay,
+                    };
+                }
+                match (outcome, exit) {
+                    (TouchingOutcome::Stay, _) => {}
+                    (TouchingOutcome::Release, false) => {
+                        self.remove().map_err(|e| self.edit(e))?;
+                    }
+                    (TouchingOutcome::Release, true) => {
+                        self.remove().map_err(|e| self.edit(e))?;
+                        self.inside(now, v_tip)?;
+                    }
+                    (TouchingOutcome::Puncture, false) => {
+                        self.state.phase = Phase::Inside;
+                        self.state.nodes[0].friction = FrictionState::Slip;
+                        self.state.cut_depth = self.depth_of(now.tip(), now.direction());
+                        self.inside(now, v_tip)?;
+                    }
+                    (TouchingOutcome::Puncture, true) => {
+                        self.state.phase = Phase::Exited;
+                        let exit = self.state.nodes.last_mut().expect("exit node");
+                        exit.friction = FrictionState::Slip;
+                        self.exited(now, v_tip)?;
+                    }
+                }
+            }
+            Phase::Inside => self.inside(now, v_tip)?,
+            Phase::Exited => self.exited(now, v_tip)?,
+        }
+        Ok(())
+    }
+
+    /// Tip past the far surface: only the Exit node is checked; the tip re-enters when
+    /// pulled back behind it.
+    fn exited(&mut self, now: &Needle, v_tip: DVec3) -> Result<(), SimulationError> {
+        let pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
+        let exit = *pos.last().expect("exit node");
+        let d = (DVec3::from(now.tip()) - exit).dot(DVec3::from(now.direction()));
+        self.state.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
+        if d < 0.0 {
+            self.remove().map_err(|e| self.edit(e))?;
+            self.inside(now, v_tip)?;
+        }
+        Ok(())
+    }
+
+    /// Inside: keep a Shaft node per spacing and the Tip node at the tip; detect the far
+    /// surface.
+    fn inside(&mut self, now: &Needle, v_tip: DVec3) -> Result<(), SimulationError> {
+        let (t, tip, h) = (
+            DVec3::from(now.direction()),
+            DVec3::from(now.tip()),
+            self.spacing,
+        );
+        let base = DVec3::from(now.base());
+        let advancing = v_tip.dot(t) > 0.0;
+        let per_length = self.contact.per_length().is_some();
+        let mut pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
+        let mut edited = false;
+        let mut carried = None;
+        let seeds = |nodes: &[NeedleNode]| -> Vec<u32> {
+            nodes.iter().rev().take(2).map(|n| n.index).collect()
+        };
+        loop {
+            let nodes = &self.state.nodes;
+            let has_tip = nodes.last().is_some_and(|n| n.role == NodeRole::Tip);
+            let last = nodes.len() - 1 - has_tip as usize;
+            let role = nodes[last].role;
+            let d = (tip - pos[last]).dot(t);
+            let lost = |sim: &Self, ahead: f64| SimulationError::NodesLost {
+                step: sim.stepper.steps(),
+                node: sim.state.nodes[last].index,
+                role,
+                ahead,
+            };
+            match shaft_edit(has_tip, role, d, h) {
+                ShaftEdit::LiftTip => {
+                    // Taken off to edit the shaft behind it: re-added below with its load.
+                    if carried.is_none() {
+                        carried = Some(self.tip_load()?);
+                    }
+                    self.remove().map_err(|e| self.edit(e))?;
+                    pos.pop();
+                }
+                ShaftEdit::RemoveShaft => {
+                    if advancing && d < 0.0 {
+                        return Err(lost(self, -d));
+                    }
+                    self.remove().map_err(|e| self.edit(e))?;
+                    pos.pop();
+                }
+                ShaftEdit::AddShaft => {
+                    let s = (pos[last] - base).dot(t) + h;
+                    let x = at(now, s);
+                    let (v, state) = self.new_node_motion(has_tip, v_tip)?;
+                    let sd = seeds(&self.state.nodes);
+                    self.add(NodeRole::Shaft, x, s, &sd, v, state)
+                        .map_err(|e| self.edit(e))?;
+                    pos.push(x);
+                }
+                ShaftEdit::AddTip => {
+                    let sd = seeds(&self.state.nodes);
+                    let (state, v, offset) = match carried.take() {
+                        Some(load) => load,
+                        // The first Tip node takes over the crack front from the deepest
+                        // node: it strains the tissue ahead as that node did.
+                        None if per_length => {
+                            let front = self.state.nodes[last].index;
+                            let o = self
+                                .editor
+                                .elastic_offset(self.backend.as_mut(), front)
+                                .map_err(|e| self.edit(e))?;
+                            (FrictionState::Slip, v_tip, o)
+                        }
+                        None => (FrictionState::Stick, v_tip, [0.0; 3]),
+                    };
+                    self.add_with_offset(NodeRole::Tip, tip, now.length(), &sd, v, state, offset)
+                        .map_err(|e| self.edit(e))?;
+                    pos.push(tip);
+                    self.state.tip_placed = tip.to_array();
+                }
+                ShaftEdit::LeaveSurface => {
+                    if advancing {
+                        return Err(lost(self, -d));
+                    }
+                    self.remove().map_err(|e| self.edit(e))?;
+                    return Ok(());
+                }
+                ShaftEdit::Keep => break,
+            }
+            edited = true;
+        }
+        let has_tip = self
+            .state
+            .nodes
+            .last()
+            .is_some_and(|n| n.role == NodeRole::Tip);
+        let moved = (tip - DVec3::from(self.state.tip_placed)).length();
+        if has_tip && !edited && moved > self.contact.refresh {
+            // The refreshed Tip node keeps the load it carried: its friction state and,
+            // with the per-length model, the tissue's velocity and its strain of the
+            // tissue around it (its elastic offset), so the load ahead of the tip is
+            // carried on, not released.
+            let (state, v, offset) = self.tip_load()?;
+            let v = if per_length { v } else { v_tip };
+            let sd = seeds(&self.state.nodes);
+            self.remove().map_err(|e| self.edit(e))?;
+            self.add_with_offset(NodeRole::Tip, tip, now.length(), &sd, v, state, offset)
+                .map_err(|e| self.edit(e))?;
+            self.state.tip_placed = tip.to_array();
+            pos.pop();
+            pos.push(tip);
+        }
+        // The far side: the tip leaving the body through a surface triangle.
+        let prev_tip = DVec3::from(self.state.swept_from);
+        if advancing {
+            if let Some((id, point)) = self.surface_crossing(prev_tip, tip, false)? {
+                if self
+                    .state
+                    .nodes
+                    .last()
+                    .is_some_and(|n| n.role == NodeRole::Tip)
+                {
+                    self.remove().map_err(|e| self.edit(e))?;
+                    pos.pop();
+                }
+                self.pin_at_surface(NodeRole::Exit, id, point, now, v_tip)?;
+                pos.push(point);
+                self.state.phase = Phase::ExitTouching;
+            }
+        }
+        // What the needle nodes' positions are now, so that `constrain` need not read
+        // them back again.
+        self.state.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
+        Ok(())
+    }
+
+    /// What the Tip node (the last node) carries into its replacement: its friction state,
+    /// velocity and, with the per-length model, its elastic offset (the paper's refresh
+    /// places it strain-free).
+    fn tip_load(&mut self) -> Result<(FrictionState, DVec3, [f64; 3]), SimulationError> {
+        let k = self.state.nodes.len() - 1;
+        let state = self.state.nodes[k].friction;
+        let v = self.node_velocity(k).map_err(|e| self.edit(e.into()))?;
+        let offset = if self.contact.per_length().is_some() {
+            let index = self.state.nodes[k].index;
+            self.editor
+                .elastic_offset(self.backend.as_mut(), index)
+                .map_err(|e| self.edit(e))?
+        } else {
+            [0.0; 3]
+        };
+        Ok((state, v, offset))
+    }
+
+    /// Velocity and friction state of a Shaft node added inside: with the per-length
+    /// model, the tissue's velocity at the tip (the Tip node's) and slipping; with the
+    /// paper's, the needle's and sticking.
+    fn new_node_motion(
+        &mut self,
+        has_tip: bool,
+        v_tip: DVec3,
+    ) -> Result<(DVec3, FrictionState), SimulationError> {
+        if self.contact.per_length().is_none() {
+            return Ok((v_tip, FrictionState::Stick));
+        }
+        let k = self.state.nodes.len() - 1;
+        let v = if has_tip {
+            self.node_velocity(k).map_err(|e| self.edit(e.into()))?
+        } else {
+            v_tip
+        };
+        Ok((v, FrictionState::Slip))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Moves the Tip node (held on the needle) to `tip`, then applies the edits to a
+    /// one-dimensional stack of node coordinates (the Surface node at 0) until none is
+    /// left, as `inside` does.
+    fn settle(stack: &mut Vec<(NodeRole, f64)>, tip: f64, h: f64) {
+        if let Some(n) = stack.last_mut().filter(|n| n.0 == NodeRole::Tip) {
+            n.1 = tip;
+        }
+        for _ in 0..100 {
+            let has_tip = stack.last().is_some_and(|n| n.0 == NodeRole::Tip);
+            let last = stack.len() - 1 - has_tip as usize;
+            let (role, s) = stack[last];
+            match shaft_edit(has_tip, role, tip - s, h) {
+                ShaftEdit::LiftTip | ShaftEdit::RemoveShaft => {
+                    stack.pop();
+                }
+                ShaftEdit::AddShaft => stack.push((NodeRole::Shaft, s + h)),
+                ShaftEdit::AddTip => stack.push((NodeRole::Tip, tip)),
+                ShaftEdit::LeaveSurface => {
+                    stack.pop();
+                    return;
+                }
+                ShaftEdit::Keep => return,
+            }
+        }
+        panic!("the edits do not settle at tip {tip}");
+    }
+
+    #[test]
+    fn the_margins_are_those_documented() {
+        let h = 1.0;
+        use NodeRole::*;
+        // No Tip node yet: the Tip node comes at h/2 past the last node, a Shaft node at 1.5 h.
+        assert_eq!(shaft_edit(false, Surface, 0.49, h), ShaftEdit::Keep);
+        assert_eq!(shaft_edit(false, Surface, 0.5, h), ShaftEdit::AddTip);
+        assert_eq!(shaft_edit(false, Shaft, 0.5, h), ShaftEdit::AddTip);
+        assert_eq!(shaft_edit(false, Shaft, 1.5, h), ShaftEdit::AddShaft);
+        // With a Tip node: lifted at 1.5 h (to add a Shaft node behind it) ...
+        assert_eq!(shaft_edit(true, Shaft, 1.49, h), ShaftEdit::Keep);
+        assert_eq!(shaft_edit(true, Shaft, 1.5, h), ShaftEdit::LiftTip);
+        // ... when the needle is pulled back to h/2 of a Shaft node, or h/4 of the Surface node.
+        assert_eq!(shaft_edit(true, Shaft, 0.5, h), ShaftEdit::Keep);
+        assert_eq!(shaft_edit(true, Shaft, 0.49, h), ShaftEdit::LiftTip);
+        assert_eq!(shaft_edit(true, Surface, 0.25, h), ShaftEdit::Keep);
+        assert_eq!(shaft_edit(true, Surface, 0.24, h), ShaftEdit::LiftTip);
+        // Without the Tip node a Shaft node closer than h/2 goes; the Surface node only
+        // when the tip is back out past it.
+        assert_eq!(shaft_edit(false, Shaft, 0.49, h), ShaftEdit::RemoveShaft);
+        assert_eq!(shaft_edit(false, Surface, 0.0, h), ShaftEdit::Keep);
+        assert_eq!(
+            shaft_edit(false, Surface, -1e-12, h),
+            ShaftEdit::LeaveSurface
+        );
+    }
+
+    #[test]
+    fn nodes_stay_a_quarter_spacing_apart_through_insertion_and_extraction() {
+        let h = 1.0;
+        let mut stack = vec![(NodeRole::Surface, 0.0)];
+        // In by 10.3 h and back out, in steps that do not divide h (up to 2.7 h a step).
+        let mut path: Vec<f64> = (0..=140).map(|i| i as f64 * 0.0737).collect();
+        path.extend((0..=140).rev().map(|i| i as f64 * 0.0737));
+        path.extend([2.7, 5.4, 8.1, 5.4, 2.7, 0.1]);
+        for &tip in &path {
+            settle(&mut stack, tip, h);
+            let s: Vec<f64> = stack.iter().map(|n| n.1).collect();
+            for w in s.windows(2) {
+                assert!(w[1] - w[0] >= 0.25 * h - 1e-12, "nodes {w:?} at tip {tip}");
+            }
+            // Shaft nodes one spacing apart from the Surface node on.
+            for (k, n) in stack.iter().enumerate() {
+                if n.0 == NodeRole::Shaft {
+                    assert!((n.1 - k as f64 * h).abs() < 1e-12, "{stack:?}");
+                }
+            }
+            // The Tip node is at the tip and past every other node; without one, the tip
+            // is within h/2 of the last node.
+            match stack.last() {
+                Some((NodeRole::Tip, s)) => assert_eq!(*s, tip),
+                Some((_, s)) => assert!(tip - s < 0.5 * h, "{stack:?} at {tip}"),
+                None => unreachable!(),
+            }
+            // At most one node per spacing of depth, plus the Surface and Tip nodes.
+            assert!(stack.len() as f64 <= tip.max(0.0) / h + 2.0, "{stack:?}");
+        }
+        assert_eq!(stack, vec![(NodeRole::Surface, 0.0)]);
+    }
+}

@@ -1,0 +1,228 @@
+//! Preparing a needle scene: the tissue with slots for the needle nodes, the needle's
+//! parameters resolved against the mesh (node spacing, grip), then the start on a backend.
+
+use super::{Contact, Simulation};
+use crate::checkpoint::{fingerprint, Checkpoint};
+use crate::config::NeedleConfig;
+use crate::friction::{grip_from_modulus, FrictionModel, PerLengthFriction};
+use crate::needle::Needle;
+use crate::node_editor::NodeEditor;
+use crate::splits::{inside_rest_body, rest_crossings, SurfaceSplits};
+use crate::state::NeedleState;
+use crate::SimulationError;
+use needlesim_core::scene::{Material, Physics};
+use needlesim_core::{geometry, Backend, Scene, SceneError, Stepper, Tissue};
+
+/// A tissue built for a needle scene, waiting for a backend.
+pub struct Prepared {
+    /// The tissue with needle node slots; give it to a backend.
+    pub tissue: Tissue,
+    editor: NodeEditor,
+    config: Option<NeedleConfig>,
+    spacing: f64,
+    grip: f64,
+    rest: Vec<[f64; 3]>,
+    physics: Physics,
+    fingerprint: Vec<(String, u64)>,
+}
+
+impl Prepared {
+    /// Starts the simulation on `backend` (built from [`Prepared::tissue`]) in the state of
+    /// `checkpoint`, taken from a simulation of the same scene; a checkpoint of another
+    /// scene is [`crate::CheckpointError::SceneMismatch`]. On the CPU backends the run then
+    /// continues bitwise as the checkpointed one would have.
+    pub fn resume(
+        self,
+        backend: Box<dyn Backend>,
+        checkpoint: Checkpoint,
+    ) -> Result<Simulation, SimulationError> {
+        let mut sim = self.start(backend)?;
+        sim.restore(checkpoint)?;
+        Ok(sim)
+    }
+
+    /// Starts the simulation on `backend`, which must have been built from
+    /// [`Prepared::tissue`].
+    pub fn start(self, mut backend: Box<dyn Backend>) -> Result<Simulation, SimulationError> {
+        if backend.capacity() != self.tissue.state.capacity() {
+            return Err(SimulationError::BackendMismatch {
+                expected: self.tissue.state.capacity(),
+                got: backend.capacity(),
+            });
+        }
+        let triangles = self.tissue.triangles.clone();
+        let (needle, script, contact) = match &self.config {
+            Some(c) => (
+                Some(c.start()?),
+                c.script().ok().flatten(),
+                Contact {
+                    friction: c.friction,
+                    grip: self.grip,
+                    cutting: c.cutting,
+                    thresholds: c.thresholds,
+                    puncture_force: c.puncture_force,
+                    refresh: c.tip_refresh * self.spacing,
+                },
+            ),
+            None => (
+                None,
+                None,
+                Contact {
+                    friction: FrictionModel::default(),
+                    grip: 0.0,
+                    cutting: 0.0,
+                    thresholds: Default::default(),
+                    puncture_force: None,
+                    refresh: 0.1 * self.spacing,
+                },
+            ),
+        };
+        if let Some(n) = &needle {
+            check_start_outside(&self.rest, &triangles, n)?;
+        }
+        let stepper = Stepper::new(&self.tissue, &self.physics);
+        // Prescribed displacements hold from the start (a ramp starts at zero).
+        stepper.start(backend.as_mut())?;
+        let surface = SurfaceSplits::new(triangles, &self.rest, 2.0 * self.spacing);
+        Ok(Simulation {
+            backend,
+            stepper,
+            editor: self.editor,
+            script,
+            contact,
+            spacing: self.spacing,
+            rest: self.rest,
+            state: NeedleState::new(needle, surface),
+            fingerprint: self.fingerprint,
+        })
+    }
+}
+
+/// Errs when the start pose has the tip or the base inside the body (odd crossings of a
+/// ray to far outside) or the shaft crossing its surface, on the rest surface.
+fn check_start_outside(
+    rest: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    n: &Needle,
+) -> Result<(), SimulationError> {
+    let (base, tip) = (n.base(), n.tip());
+    for (what, p) in [("tip", tip), ("base", base)] {
+        if inside_rest_body(rest, triangles, p) {
+            return Err(SimulationError::StartsInside {
+                what,
+                point: p,
+                where_: "inside the body",
+            });
+        }
+    }
+    let first = rest_crossings(rest, triangles, base, tip)
+        .into_iter()
+        .min_by(f64::total_cmp);
+    if let Some(t) = first {
+        return Err(SimulationError::StartsInside {
+            what: "shaft",
+            point: std::array::from_fn(|a| base[a] + t * (tip[a] - base[a])),
+            where_: "crossing the surface",
+        });
+    }
+    Ok(())
+}
+
+/// The grip per unit length (N/m) of the per-length friction model: the scene's
+/// `friction.grip`, or from the material's Young's modulus (for mass-spring and shape
+/// matching, the one their calibrated stiffness gives at the mesh spacing `h`).
+fn resolve_grip(scene: &Scene, c: &NeedleConfig, h: f64) -> Result<f64, SceneError> {
+    let FrictionModel::PerLength(PerLengthFriction { grip, .. }) = c.friction else {
+        return Ok(0.0);
+    };
+    if let Some(g) = grip {
+        return Ok(g);
+    }
+    use needlesim_core::calibration::calibration;
+    let k = scene.tissue.neighbours;
+    let uncalibrated = |e: needlesim_core::calibration::UncalibratedNeighbours| {
+        SceneError::invalid(
+            "needle.friction.grip",
+            format!("cannot be derived from this material's stiffness ({e}); give it in N/m"),
+        )
+    };
+    // Mass-spring's lattice Poisson ratio is about 1/4; cluster shape matching's lateral
+    // contraction is about 0 (docs/report).
+    let (young, nu) = match scene.material {
+        Material::DebunneMeshfree(p) => (p.young_modulus, p.poisson_ratio),
+        Material::PointBased(p) => (p.young_modulus, p.poisson_ratio),
+        Material::MassSpring(p) => {
+            let cal = calibration(k).map_err(uncalibrated)?;
+            (p.stiffness / (cal.mass_spring * h), 0.25)
+        }
+        Material::LocalShapeMatching(p) => {
+            let cal = calibration(k).map_err(uncalibrated)?;
+            let c = if p.forces == needlesim_core::scene::ShapeMatchingForces::Cluster {
+                cal.shape_matching_cluster
+            } else {
+                cal.shape_matching_node
+            };
+            (p.stiffness / (c * h), 0.0)
+        }
+    };
+    Ok(grip_from_modulus(young, nu, c.radius))
+}
+
+impl Simulation {
+    /// Builds the tissue of `scene` with room for the needle nodes its `[needle]` table
+    /// needs (none without a needle). Build a backend from [`Prepared::tissue`], then call
+    /// [`Prepared::start`].
+    pub fn prepare(scene: &Scene) -> Result<Prepared, SimulationError> {
+        let config = match &scene.needle {
+            Some(t) => Some(NeedleConfig::from_table(t)?),
+            None => None,
+        };
+        // The needle's slots enter the memory estimate before anything is allocated (with
+        // its own spacing; the mesh spacing is known only after the build, checked below).
+        let given = config
+            .as_ref()
+            .and_then(|c| c.spacing.map(|h| c.length / h + 4.0))
+            .unwrap_or(0.0);
+        let cloud = geometry::build_checked(scene, given, "needle.spacing")?;
+        let rest = cloud.positions.clone();
+        let mesh_spacing = (cloud.volume / rest.len().max(1) as f64).cbrt();
+        let spacing = config
+            .as_ref()
+            .and_then(|c| c.spacing)
+            .unwrap_or(mesh_spacing);
+        let grip = match &config {
+            Some(c) => {
+                c.check_radius(spacing)?;
+                resolve_grip(scene, c, mesh_spacing)?
+            }
+            None => 0.0,
+        };
+        if let Some(c) = &config {
+            let key = if c.spacing.is_some() {
+                "needle.spacing"
+            } else {
+                "needle.length"
+            };
+            geometry::check_memory(
+                scene,
+                &geometry::MeshEstimate::built(rest.len()),
+                c.length / spacing + 4.0,
+                key,
+            )?;
+        }
+        let extra = config.as_ref().map_or(0, |c| c.node_slots(spacing));
+        let tissue = Tissue::from_cloud(scene, cloud, extra)?;
+        let editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
+        let fingerprint = fingerprint(scene, &tissue.state.positions);
+        Ok(Prepared {
+            fingerprint,
+            tissue,
+            editor,
+            config,
+            spacing,
+            grip,
+            rest,
+            physics: scene.physics,
+        })
+    }
+}

@@ -1,0 +1,159 @@
+//! The tissue surface as the needle sees it: the surface triangles with the entry and
+//! exit splits (the touched triangle split 1-to-3 around the Surface or Exit node,
+//! [`crate::puncture::split_triangle`]), the triangle grid kept in step with them, and the
+//! queries on it: where the tip's swept segment crosses the surface (entering against the
+//! outward normal, or leaving along it), and whether a point is inside the rest body.
+
+use crate::puncture::{restore_triangle, split_triangle, Split};
+use crate::surface_query::{segment_triangle, TriangleGrid};
+use glam::DVec3;
+use needlesim_core::{geometry, Backend, NodeField, SimError};
+
+/// Surface triangles, their grid and the split stack (entry split, then exit split).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct SurfaceSplits {
+    triangles: Vec<[u32; 3]>,
+    grid: TriangleGrid,
+    splits: Vec<Split>,
+}
+
+impl SurfaceSplits {
+    /// The unsplit surface `triangles` over the rest positions `rest`, binned with a margin
+    /// of `margin` m.
+    pub fn new(triangles: Vec<[u32; 3]>, rest: &[[f64; 3]], margin: f64) -> SurfaceSplits {
+        let grid = TriangleGrid::build(rest, &triangles, margin);
+        SurfaceSplits {
+            triangles,
+            grid,
+            splits: Vec::new(),
+        }
+    }
+
+    /// Surface triangles (node indices), with the splits.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The latest split.
+    pub fn last_split(&self) -> Option<&Split> {
+        self.splits.last()
+    }
+
+    /// Whether the splits and triangles name only nodes below `n_active` (a restored
+    /// checkpoint).
+    pub fn fits(&self, n_active: usize) -> bool {
+        self.splits.len() <= 2
+            && self
+                .triangles
+                .iter()
+                .flatten()
+                .all(|&i| (i as usize) < n_active)
+    }
+
+    /// Splits triangle `id` around node `node`; `rest` gives a node's rest position.
+    pub fn split(&mut self, id: usize, node: u32, rest: impl Fn(u32) -> [f64; 3]) {
+        let sp = split_triangle(&mut self.triangles, id, node);
+        self.grid.remove(id as u32);
+        for tid in [id, sp.appended_at, sp.appended_at + 1] {
+            let c = self.triangles[tid].map(&rest);
+            self.grid.insert(tid as u32, c);
+        }
+        self.splits.push(sp);
+    }
+
+    /// Undoes the latest split, if any.
+    pub fn unsplit(&mut self, rest: impl Fn(u32) -> [f64; 3]) {
+        let Some(sp) = self.splits.pop() else {
+            return;
+        };
+        for id in [sp.triangle, sp.appended_at, sp.appended_at + 1] {
+            self.grid.remove(id as u32);
+        }
+        restore_triangle(&mut self.triangles, &sp);
+        let corners = sp.original.map(rest);
+        self.grid.insert(sp.triangle as u32, corners);
+    }
+
+    /// The first surface triangle crossed by the segment `p0 -> p1` on the deformed
+    /// surface (corners read from `backend`), from outside (`entering`, against the
+    /// outward normal of the counter-clockwise winding) or from inside, and where.
+    /// Triangles with a corner in `skip` (the needle nodes) are ignored.
+    pub fn crossing(
+        &self,
+        backend: &mut dyn Backend,
+        p0: [f64; 3],
+        p1: [f64; 3],
+        entering: bool,
+        skip: &[u32],
+    ) -> Result<Option<(usize, [f64; 3])>, SimError> {
+        if p0 == p1 {
+            return Ok(None);
+        }
+        let mut cand = self.grid.candidates(p0, p1);
+        cand.retain(|&c| !self.triangles[c as usize].iter().any(|v| skip.contains(v)));
+        if cand.is_empty() {
+            return Ok(None);
+        }
+        let mut verts: Vec<u32> = cand
+            .iter()
+            .flat_map(|&c| self.triangles[c as usize])
+            .collect();
+        verts.sort_unstable();
+        verts.dedup();
+        let mut pos = vec![[0.0f32; 4]; verts.len()];
+        backend.read_nodes(NodeField::Position, &verts, &mut pos)?;
+        let p = |v: u32| {
+            let q = pos[verts.binary_search(&v).expect("listed")];
+            [q[0] as f64, q[1] as f64, q[2] as f64]
+        };
+        let seg = DVec3::from(p1) - DVec3::from(p0);
+        let mut best: Option<(f64, usize, [f64; 3])> = None;
+        for &c in &cand {
+            let [a, b, cc] = self.triangles[c as usize].map(p);
+            let Some((s, w)) = segment_triangle(p0, p1, a, b, cc) else {
+                continue;
+            };
+            let (a, b, cc) = (DVec3::from(a), DVec3::from(b), DVec3::from(cc));
+            let normal = (b - a).cross(cc - a);
+            if (normal.dot(seg) < 0.0) != entering {
+                continue;
+            }
+            if best.is_none_or(|(bs, _, _)| s < bs) {
+                let hit = a * w[0] + b * w[1] + cc * w[2];
+                best = Some((s, c as usize, hit.to_array()));
+            }
+        }
+        Ok(best.map(|(_, id, hit)| (id, hit)))
+    }
+}
+
+/// Segment parameters in `[0, 1]` where `p0 -> p1` crosses the surface `triangles` over
+/// `rest` (a crossing on an edge is found in both triangles sharing it).
+pub(crate) fn rest_crossings(
+    rest: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    p0: [f64; 3],
+    p1: [f64; 3],
+) -> Vec<f64> {
+    triangles
+        .iter()
+        .filter_map(|t| {
+            let [a, b, c] = t.map(|v| rest[v as usize]);
+            segment_triangle(p0, p1, a, b, c).map(|h| h.0)
+        })
+        .collect()
+}
+
+/// Whether `p` is inside the closed rest surface: an odd number of crossings of a ray to
+/// far outside.
+pub(crate) fn inside_rest_body(rest: &[[f64; 3]], triangles: &[[u32; 3]], p: [f64; 3]) -> bool {
+    let (lo, hi) = geometry::bounds(rest);
+    let reach = 4.0 * (DVec3::from(hi) - DVec3::from(lo)).length();
+    // A direction unlikely to graze edges of axis-aligned or regular meshes.
+    let ray = DVec3::new(0.5377, 0.6143, 0.5773);
+    let far = DVec3::from(p) + ray * reach;
+    let mut t = rest_crossings(rest, triangles, p, far.to_array());
+    t.sort_by(f64::total_cmp);
+    t.dedup_by(|x, y| (*x - *y).abs() < 1e-9);
+    t.len() % 2 == 1
+}

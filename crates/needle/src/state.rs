@@ -1,0 +1,101 @@
+//! The needle simulation's changing state: everything a step updates besides the backend's
+//! arrays and the node editor. A checkpoint stores it whole.
+
+use crate::needle::Needle;
+use crate::nodes::{NeedleForce, NeedleNode, NeedleSample};
+use crate::puncture::PunctureState;
+use crate::splits::SurfaceSplits;
+use needlesim_core::math::Vec4;
+
+/// Where the needle is in its path through the body (the public [`PunctureState`] is the
+/// tip's view of it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub(crate) enum Phase {
+    /// No contact.
+    Outside,
+    /// Denting the entry surface.
+    Touching,
+    /// Tip inside.
+    Inside,
+    /// Denting the far surface from inside.
+    ExitTouching,
+    /// Tip out past the far surface, shaft inside.
+    Exited,
+}
+
+impl Phase {
+    pub(crate) fn state(self) -> PunctureState {
+        match self {
+            Phase::Outside | Phase::Exited => PunctureState::Outside,
+            Phase::Touching | Phase::ExitTouching => PunctureState::Touching,
+            Phase::Inside => PunctureState::Inside,
+        }
+    }
+}
+
+/// The needle simulation's state besides the tissue arrays.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct NeedleState {
+    /// The pose for the coming step.
+    pub needle: Option<Needle>,
+    /// The pose at the end of the last step.
+    pub prev: Option<Needle>,
+    /// Surface triangles with the entry and exit splits.
+    pub surface: SurfaceSplits,
+    pub phase: Phase,
+    /// Needle nodes, oldest first (a stack).
+    pub nodes: Vec<NeedleNode>,
+    /// Velocities written to the needle nodes this step.
+    pub velocities: Vec<Vec4>,
+    /// Positions written to the needle nodes this step.
+    pub positions: Vec<Vec4>,
+    /// Where the Tip node was last placed.
+    pub tip_placed: [f64; 3],
+    /// The tip at the start of this step's sweep.
+    pub swept_from: [f64; 3],
+    /// Where the tip first touched the surface.
+    pub entry: Option<[f64; 3]>,
+    /// Deepest tip depth past the entry so far (the crack front), m.
+    pub cut_depth: f64,
+    /// Axial force of the pinned (Surface or Exit) node on the needle in the last step, N.
+    pub pinned_axial: f64,
+    /// The force on the needle in the last step.
+    pub force: NeedleForce,
+    pub history: Vec<NeedleSample>,
+    /// Whether a step appends to the history.
+    pub record: bool,
+    /// Most history samples kept (the oldest go first); `None` keeps every one.
+    pub history_limit: Option<usize>,
+    /// The tip before the first recorded step (the depth origin before any contact).
+    pub start_tip: Option<[f64; 3]>,
+}
+
+impl NeedleState {
+    /// The state before the first step: needle at its start pose, no contact.
+    pub fn new(needle: Option<Needle>, surface: SurfaceSplits) -> NeedleState {
+        NeedleState {
+            needle,
+            prev: needle,
+            surface,
+            phase: Phase::Outside,
+            nodes: Vec::new(),
+            velocities: Vec::new(),
+            positions: Vec::new(),
+            tip_placed: [0.0; 3],
+            swept_from: [0.0; 3],
+            entry: None,
+            cut_depth: f64::NEG_INFINITY,
+            pinned_axial: 0.0,
+            force: NeedleForce::default(),
+            history: Vec::new(),
+            record: true,
+            history_limit: None,
+            start_tip: None,
+        }
+    }
+
+    /// The puncture state the tip is in.
+    pub fn puncture_state(&self) -> PunctureState {
+        self.phase.state()
+    }
+}
