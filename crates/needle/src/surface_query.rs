@@ -294,8 +294,9 @@ mod tests {
         let mut next = rng(99);
         let mut hits = 0;
         for _ in 0..500 {
-            let p0: [f64; 3] = std::array::from_fn(|_| -0.02 + 0.14 * next());
-            let p1: [f64; 3] = std::array::from_fn(|a| p0[a] + 0.03 * (next() - 0.5));
+            let p0 = DVec3::new(next(), next(), next()) * 0.14 - 0.02;
+            let p1 = p0 + 0.03 * (DVec3::new(next(), next(), next()) - 0.5);
+            let (p0, p1) = (p0.to_array(), p1.to_array());
             for side in [Side::Entering, Side::Leaving] {
                 let all = 0..tris.len() as u32;
                 let brute = first_crossing(p0, p1, all, side, corners);
