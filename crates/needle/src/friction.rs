@@ -55,6 +55,7 @@
 //! model whose explicit `sign(w)` flips from step to step near zero relative speed; it is
 //! kept to reproduce the paper.
 
+use glam::DVec3;
 use serde::Deserialize;
 
 /// Friction state of one needle node.
@@ -264,18 +265,20 @@ impl FrictionModel {
     }
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
 /// Axial component `f . t` and normal part `f - (f . t) t` of a force (eqs. 3 and 4).
 pub fn split(f: [f64; 3], t: [f64; 3]) -> (f64, [f64; 3]) {
-    let p = dot(f, t);
-    (p, std::array::from_fn(|a| f[a] - p * t[a]))
+    let (p, n) = split_v(DVec3::from_array(f), DVec3::from_array(t));
+    (p, n.to_array())
+}
+
+fn split_v(f: DVec3, t: DVec3) -> (f64, DVec3) {
+    let p = f.dot(t);
+    (p, f - t * p)
+}
+
+/// The needle's axial velocity relative to the node, `(v_needle - v_node) . t`.
+fn relative_axial(v_node: [f64; 3], v_needle: [f64; 3], t: DVec3) -> f64 {
+    (DVec3::from_array(v_needle) - DVec3::from_array(v_node)).dot(t)
 }
 
 /// Friction limits of one node in N, by direction of the force the needle exerts on it
@@ -377,7 +380,7 @@ pub fn paper_next_state(
             FrictionState::Slip
         }
         FrictionState::Slip
-            if dot(sub(v_needle, v_node), t).abs() < p.stick_speed
+            if relative_axial(v_node, v_needle, DVec3::from_array(t)).abs() < p.stick_speed
                 && split(elastic, t).0.abs() <= p.static_threshold =>
         {
             FrictionState::Stick
@@ -394,11 +397,12 @@ pub fn paper_dynamic_friction(
     t: [f64; 3],
     p: &PaperFriction,
 ) -> [f64; 3] {
-    let w = dot(sub(v_needle, v_node), t);
-    let normal = split(elastic, t).1;
-    let coulomb = if w == 0.0 { 0.0 } else { w.signum() } * p.dynamic * dot(normal, normal).sqrt();
+    let t = DVec3::from_array(t);
+    let w = relative_axial(v_node, v_needle, t);
+    let normal = split_v(DVec3::from_array(elastic), t).1;
+    let coulomb = if w == 0.0 { 0.0 } else { w.signum() } * p.dynamic * normal.length();
     let m = p.viscous * w + coulomb;
-    t.map(|x| m * x)
+    (t * m).to_array()
 }
 
 #[cfg(test)]
@@ -461,14 +465,15 @@ mod tests {
             let (vn, vd) = ([r(), r(), r()], [r(), r(), r()]);
             let fd = paper_dynamic_friction(f, vn, vd, t, &P);
             let (along, normal) = split(fd, t);
-            assert!(dot(normal, normal).sqrt() < 1e-12);
-            assert!(dot(fd, sub(vn, vd)) <= 1e-15);
-            let w = dot(sub(vd, vn), t);
-            let fnorm = dot(split(f, t).1, split(f, t).1).sqrt();
+            let v = DVec3::from_array;
+            assert!(v(normal).length() < 1e-12);
+            assert!(v(fd).dot(v(vn) - v(vd)) <= 1e-15);
+            let w = (v(vd) - v(vn)).dot(v(t));
+            let fnorm = v(split(f, t).1).length();
             assert!((along.abs() - (P.viscous * w.abs() + P.dynamic * fnorm)).abs() < 1e-12);
         }
         let fd = paper_dynamic_friction([0.0, 0.0, 1.0], [0.0; 3], [0.06, 0.08, 0.0], t, &P);
-        assert!(dot(fd, t) > 0.0);
+        assert!(DVec3::from_array(fd).dot(DVec3::from_array(t)) > 0.0);
     }
 
     fn step(elastic: f64, velocity: f64, needle: f64) -> AxialStep {

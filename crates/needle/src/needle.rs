@@ -1,6 +1,7 @@
 //! The rigid straight needle: base `b`, unit direction `t` (base to tip), length `L`, tip
 //! `b + L t`.
 
+use glam::DVec3;
 use thiserror::Error;
 
 /// A needle pose or parameter that cannot be simulated.
@@ -25,60 +26,55 @@ pub enum NeedleError {
 /// A rigid straight needle.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Needle {
-    base: [f64; 3],
-    direction: [f64; 3],
+    base: DVec3,
+    direction: DVec3,
     length: f64,
 }
 
-fn finite(what: &'static str, v: [f64; 3]) -> Result<(), NeedleError> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(())
+fn finite(what: &'static str, v: [f64; 3]) -> Result<DVec3, NeedleError> {
+    let d = DVec3::from_array(v);
+    if d.is_finite() {
+        Ok(d)
     } else {
         Err(NeedleError::NonFinite { what, value: v })
     }
 }
 
-/// Euclidean length.
-pub fn norm(v: [f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-}
-
 /// `v / |v|`, or an error for a zero or non-finite vector.
 pub fn unit(v: [f64; 3]) -> Result<[f64; 3], NeedleError> {
-    finite("direction", v)?;
+    let d = finite("direction", v)?;
     // Scaled by the largest component first, so that neither [1e300, 0, 0] (whose norm
     // overflows) nor [1e-200, 0, 0] (whose squares underflow) normalises to zero.
-    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let m = d.abs().max_element();
     if m == 0.0 {
         return Err(NeedleError::ZeroDirection(v));
     }
-    let w = v.map(|x| x / m);
-    let n = norm(w);
-    Ok(w.map(|x| x / n))
+    let w = d / m;
+    Ok((w / w.length()).to_array())
 }
 
 impl Needle {
     /// A needle from its base, a direction (normalised here) and its length in metres.
     pub fn new(base: [f64; 3], direction: [f64; 3], length: f64) -> Result<Needle, NeedleError> {
-        finite("base", base)?;
+        let base = finite("base", base)?;
         if !(length.is_finite() && length > 0.0) {
             return Err(NeedleError::BadLength(length));
         }
         Ok(Needle {
             base,
-            direction: unit(direction)?,
+            direction: DVec3::from_array(unit(direction)?),
             length,
         })
     }
 
     /// Base point.
     pub fn base(&self) -> [f64; 3] {
-        self.base
+        self.base.to_array()
     }
 
     /// Unit direction from base to tip.
     pub fn direction(&self) -> [f64; 3] {
-        self.direction
+        self.direction.to_array()
     }
 
     /// Length in metres.
@@ -88,22 +84,23 @@ impl Needle {
 
     /// Tip point `b + L t`.
     pub fn tip(&self) -> [f64; 3] {
-        std::array::from_fn(|a| self.base[a] + self.length * self.direction[a])
+        (self.base + self.direction * self.length).to_array()
     }
 
     /// Moves the needle to a new pose (same length).
     pub fn set_pose(&mut self, base: [f64; 3], direction: [f64; 3]) -> Result<(), NeedleError> {
-        finite("base", base)?;
-        self.direction = unit(direction)?;
+        let base = finite("base", base)?;
+        self.direction = DVec3::from_array(unit(direction)?);
         self.base = base;
         Ok(())
     }
 
-    /// Splits `p - b` into the distance along the shaft and the perpendicular offset.
+    /// Splits `p - b` into the distance along the shaft's line (not clamped to the shaft)
+    /// and the perpendicular offset.
     pub fn project(&self, p: [f64; 3]) -> (f64, [f64; 3]) {
-        let d: [f64; 3] = std::array::from_fn(|a| p[a] - self.base[a]);
-        let s: f64 = (0..3).map(|a| d[a] * self.direction[a]).sum();
-        (s, std::array::from_fn(|a| d[a] - s * self.direction[a]))
+        let d = DVec3::from_array(p) - self.base;
+        let s = d.dot(self.direction);
+        (s, (d - self.direction * s).to_array())
     }
 }
 

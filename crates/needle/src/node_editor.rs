@@ -26,6 +26,7 @@
 //! estimate times the factor the build normalised the volumes with (no global
 //! renormalisation, which would touch every node).
 
+use glam::{DMat3, DVec3, Mat3, Vec3};
 use needlesim_core::math::{quat_to_mat, Vec4, QUAT_IDENTITY};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::models::ShapeInfo;
@@ -121,7 +122,7 @@ impl NodeEditor {
         let n = tissue.n_mesh;
         let mut r = vec![[0.0f32; 4]; capacity];
         for (o, p) in r.iter_mut().zip(rest) {
-            *o = [p[0] as f32, p[1] as f32, p[2] as f32, 0.0];
+            *o = DVec3::from_array(*p).as_vec3().extend(0.0).to_array();
         }
         let nb = tissue.neighbours.clone();
         let k = nb.k;
@@ -132,7 +133,7 @@ impl NodeEditor {
                 }
                 kernel_length(
                     &mut (0..k)
-                        .map(|s| dist(r[i], r[nb.index[i * k + s] as usize]))
+                        .map(|s| dvec3(r[i]).distance(dvec3(r[nb.index[i * k + s] as usize])))
                         .collect::<Vec<_>>(),
                 )
             })
@@ -252,48 +253,33 @@ impl NodeEditor {
         }
         let members: Vec<(u32, Vec4)> = nodes.into_iter().zip(pos).collect();
         let (c, c0, rot, _) = self.frame(&members);
-        let r0 = self.rest[i as usize];
-        let d0: [f64; 3] = std::array::from_fn(|a| r0[a] as f64 - c0[a]);
-        Ok(std::array::from_fn(|row| {
-            xi[row] as f64
-                - c[row]
-                - (0..3)
-                    .map(|col| rot[row][col] as f64 * d0[col])
-                    .sum::<f64>()
-        }))
+        let d0 = dvec3(self.rest[i as usize]) - c0;
+        Ok((dvec3(xi) - c - rot * d0).to_array())
     }
 
     /// Centroids (current, rest) of `members` (index, current position) and the rotation
     /// of the polar decomposition of `sum (x_j - C)(x0_j - C0)^T` (matrix and quaternion).
-    fn frame(&self, members: &[(u32, Vec4)]) -> ([f64; 3], [f64; 3], [[f32; 3]; 3], Vec4) {
+    fn frame(&self, members: &[(u32, Vec4)]) -> (DVec3, DVec3, DMat3, Vec4) {
         let m = members.len() as f64;
-        let mut c = [0.0f64; 3];
-        let mut c0 = [0.0f64; 3];
+        let (mut c, mut c0) = (DVec3::ZERO, DVec3::ZERO);
         for (j, p) in members {
-            let r = self.rest[*j as usize];
-            for a in 0..3 {
-                c[a] += p[a] as f64 / m;
-                c0[a] += r[a] as f64 / m;
-            }
+            c += dvec3(*p) / m;
+            c0 += dvec3(self.rest[*j as usize]) / m;
         }
-        let mut a_mat = [[0.0f64; 3]; 3];
+        let mut a_mat = DMat3::ZERO;
         let mut scale = 0.0f64;
         for (j, p) in members {
-            let r = self.rest[*j as usize];
-            let d: [f64; 3] = std::array::from_fn(|a| p[a] as f64 - c[a]);
-            let d0: [f64; 3] = std::array::from_fn(|a| r[a] as f64 - c0[a]);
-            for row in 0..3 {
-                for col in 0..3 {
-                    a_mat[row][col] += d[row] * d0[col];
-                }
-            }
-            scale += d0.iter().map(|e| e * e).sum::<f64>();
+            let d = dvec3(*p) - c;
+            let d0 = dvec3(self.rest[*j as usize]) - c0;
+            // The outer product d d0^T, column by column.
+            a_mat += DMat3::from_cols(d * d0.x, d * d0.y, d * d0.z);
+            scale += d0.length_squared();
         }
-        let a32: [[f32; 3]; 3] = std::array::from_fn(|r| {
-            std::array::from_fn(|q| (a_mat[r][q] / scale.max(1e-300)) as f32)
-        });
-        let q = extract_rotation(&a32, QUAT_IDENTITY, 50);
-        (c, c0, quat_to_mat(q), q)
+        // extract_rotation and quat_to_mat take and give row-major f32 matrices.
+        let rows = a_mat.div_scalar(scale.max(1e-300)).transpose();
+        let q = extract_rotation(&rows.as_mat3().to_cols_array_2d(), QUAT_IDENTITY, 50);
+        let rot = Mat3::from_cols_array_2d(&quat_to_mat(q)).transpose();
+        (c, c0, rot.as_dmat3(), q)
     }
 
     /// [`NodeEditor::add_node`] with an elastic offset (world frame, m): the rest position
@@ -336,7 +322,7 @@ impl NodeEditor {
         let mut near: Vec<(f64, u32, Vec4)> = cand
             .iter()
             .zip(&pos)
-            .map(|(&c, &p)| (dist(p, xi), c, p))
+            .map(|(&c, &p)| (dvec3(p).distance(dvec3(xi)), c, p))
             .collect();
         near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         near.truncate(k);
@@ -344,16 +330,10 @@ impl NodeEditor {
         // Steps 2 and 3: rotation of the neighbourhood, shape vector, rest position.
         let members: Vec<(u32, Vec4)> = near.iter().map(|(_, j, p)| (*j, *p)).collect();
         let (c, c0, rot, q) = self.frame(&members);
-        let d: [f64; 3] = std::array::from_fn(|a| x[a] as f64 - c[a] - offset[a]);
+        let d = Vec3::from_array(x).as_dvec3() - c - DVec3::from_array(offset);
         // v = R^T d
-        let v_shape: [f64; 3] =
-            std::array::from_fn(|col| (0..3).map(|row| rot[row][col] as f64 * d[row]).sum());
-        let x0: Vec4 = [
-            (c0[0] + v_shape[0]) as f32,
-            (c0[1] + v_shape[1]) as f32,
-            (c0[2] + v_shape[2]) as f32,
-            0.0,
-        ];
+        let v_shape = rot.transpose() * d;
+        let x0: Vec4 = (c0 + v_shape).as_vec3().extend(0.0).to_array();
 
         let mut undo = Vec::new();
         let old = Addition {
@@ -366,7 +346,7 @@ impl NodeEditor {
         let dki = kernel_length(
             &mut near
                 .iter()
-                .map(|(_, j, _)| dist(self.rest[*j as usize], x0))
+                .map(|(_, j, _)| dvec3(self.rest[*j as usize]).distance(dvec3(x0)))
                 .collect::<Vec<_>>(),
         );
         self.dk[i] = dki;
@@ -379,7 +359,8 @@ impl NodeEditor {
         let mut pairs = Vec::new();
         for (_, j, _) in &near {
             let ju = *j as usize;
-            let w = kernel_weight(self.kernel, dist(self.rest[ju], x0), dki, self.dk[ju]) as f32;
+            let r = dvec3(self.rest[ju]).distance(dvec3(x0));
+            let w = kernel_weight(self.kernel, r, dki, self.dk[ju]) as f32;
             if w == 0.0 {
                 continue;
             }
@@ -657,9 +638,7 @@ impl NodeEditor {
     }
 }
 
-fn dist(a: Vec4, b: Vec4) -> f64 {
-    (0..3)
-        .map(|c| (a[c] as f64 - b[c] as f64).powi(2))
-        .sum::<f64>()
-        .sqrt()
+/// The position part of a node's `[x, y, z, w]`, in f64.
+fn dvec3(p: Vec4) -> DVec3 {
+    glam::Vec4::from_array(p).truncate().as_dvec3()
 }

@@ -8,6 +8,7 @@
 //! is punctured; pulling back opens it: above the release threshold (default 95 degrees)
 //! the Surface node is removed and the triangle restored.
 
+use glam::DVec3;
 use serde::Deserialize;
 
 /// Where the needle tip is relative to the tissue.
@@ -94,12 +95,15 @@ impl Thresholds {
 /// Mean angle in degrees between the edges `surface node -> corner` and `-direction` (the
 /// shaft from tip to base, `direction` being base to tip, unit length).
 pub fn mean_cone_angle(surface_node: [f64; 3], corners: [[f64; 3]; 3], direction: [f64; 3]) -> f64 {
+    let (s, t) = (
+        DVec3::from_array(surface_node),
+        DVec3::from_array(direction),
+    );
     corners
         .iter()
         .map(|c| {
-            let e: [f64; 3] = std::array::from_fn(|a| c[a] - surface_node[a]);
-            let len = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
-            let cos = -(e[0] * direction[0] + e[1] * direction[1] + e[2] * direction[2]) / len;
+            let e = DVec3::from_array(*c) - s;
+            let cos = -e.dot(t) / e.length();
             cos.clamp(-1.0, 1.0).acos().to_degrees()
         })
         .sum::<f64>()

@@ -17,6 +17,7 @@
 //! ```
 
 use crate::needle::{unit, Needle, NeedleError};
+use glam::{DQuat, DVec3};
 use serde::Deserialize;
 use thiserror::Error;
 
@@ -78,44 +79,34 @@ pub struct PoseScript {
     end: (f64, Needle),
 }
 
-fn rotate_about(axis: [f64; 3], angle: f64, v: [f64; 3]) -> [f64; 3] {
-    // Rodrigues: v cos + (k x v) sin + k (k . v)(1 - cos)
-    let (s, c) = angle.sin_cos();
-    let kxv = [
-        axis[1] * v[2] - axis[2] * v[1],
-        axis[2] * v[0] - axis[0] * v[2],
-        axis[0] * v[1] - axis[1] * v[0],
-    ];
-    let kv: f64 = (0..3).map(|a| axis[a] * v[a]).sum();
-    std::array::from_fn(|a| v[a] * c + kxv[a] * s + axis[a] * kv * (1.0 - c))
-}
-
 /// The needle after `tau` seconds of keyframe `k` from pose `n`.
 fn advance(n: &Needle, k: &Keyframe, tau: f64) -> Result<Needle, NeedleError> {
-    let (b, t) = (n.base(), n.direction());
+    let (b, t) = (
+        DVec3::from_array(n.base()),
+        DVec3::from_array(n.direction()),
+    );
     let mut out = *n;
     match *k {
         Keyframe::Move {
             direction, speed, ..
         } => {
-            let d = unit(direction)?;
-            out.set_pose(std::array::from_fn(|a| b[a] + speed * tau * d[a]), t)?;
+            let d = DVec3::from_array(unit(direction)?);
+            out.set_pose((b + d * (speed * tau)).to_array(), t.to_array())?;
         }
         Keyframe::Pause { .. } => {}
         Keyframe::Rotate {
             axis, point, rate, ..
         } => {
-            let k = unit(axis)?;
-            let angle = rate.to_radians() * tau;
-            let rel: [f64; 3] = std::array::from_fn(|a| b[a] - point[a]);
-            let r = rotate_about(k, angle, rel);
+            let turn =
+                DQuat::from_axis_angle(DVec3::from_array(unit(axis)?), rate.to_radians() * tau);
+            let point = DVec3::from_array(point);
             out.set_pose(
-                std::array::from_fn(|a| point[a] + r[a]),
-                rotate_about(k, angle, t),
+                (point + turn * (b - point)).to_array(),
+                (turn * t).to_array(),
             )?;
         }
         Keyframe::Extract { speed, .. } => {
-            out.set_pose(std::array::from_fn(|a| b[a] - speed * tau * t[a]), t)?;
+            out.set_pose((b - t * (speed * tau)).to_array(), t.to_array())?;
         }
     }
     Ok(out)
@@ -227,7 +218,12 @@ mod tests {
         let start = Needle::new([-0.2, 0.05, 0.05], [1.0, 0.0, 0.0], 0.1).unwrap();
         let s = PoseScript::new(start, f.keyframe).unwrap();
         assert_eq!(s.duration(), 22.0);
-        let close = |a: [f64; 3], b: [f64; 3]| (0..3).all(|k| (a[k] - b[k]).abs() < 1e-12);
+        let close = |a: [f64; 3], b: [f64; 3]| {
+            (DVec3::from_array(a) - DVec3::from_array(b))
+                .abs()
+                .max_element()
+                < 1e-12
+        };
         assert!(close(s.pose_at(-1.0).tip(), [-0.1, 0.05, 0.05]));
         assert!(close(s.pose_at(7.5).tip(), [-0.025, 0.05, 0.05]));
         assert!(close(s.pose_at(15.5).tip(), [0.05, 0.05, 0.05]));
@@ -239,10 +235,8 @@ mod tests {
         assert!(close(r.direction(), [a.cos(), a.sin(), 0.0]));
         // Extraction pulls back along the shaft by 2 cm.
         let e = s.pose_at(100.0);
-        assert!(close(
-            e.tip(),
-            std::array::from_fn(|k| r.tip()[k] - 0.02 * r.direction()[k])
-        ));
+        let pulled = DVec3::from_array(r.tip()) - 0.02 * DVec3::from_array(r.direction());
+        assert!(close(e.tip(), pulled.to_array()));
     }
 
     #[test]
