@@ -5,9 +5,8 @@
 //! outward normal, or leaving along it), and whether a point is inside the rest body.
 
 use crate::puncture::{restore_triangle, split_triangle, Split};
-use crate::surface_query::{segment_triangle, TriangleGrid};
-use glam::DVec3;
-use needlesim_core::{geometry, Backend, NodeField, SimError};
+use crate::surface_query::{first_crossing, segment_triangle, Side, TriangleGrid};
+use needlesim_core::{Backend, NodeField, SimError};
 
 /// Surface triangles, their grid and the split stack (entry split, then exit split).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
@@ -106,24 +105,13 @@ impl SurfaceSplits {
             let q = pos[verts.binary_search(&v).expect("listed")];
             [q[0] as f64, q[1] as f64, q[2] as f64]
         };
-        let seg = DVec3::from(p1) - DVec3::from(p0);
-        let mut best: Option<(f64, usize, [f64; 3])> = None;
-        for &c in &cand {
-            let [a, b, cc] = self.triangles[c as usize].map(p);
-            let Some((s, w)) = segment_triangle(p0, p1, a, b, cc) else {
-                continue;
-            };
-            let (a, b, cc) = (DVec3::from(a), DVec3::from(b), DVec3::from(cc));
-            let normal = (b - a).cross(cc - a);
-            if (normal.dot(seg) < 0.0) != entering {
-                continue;
-            }
-            if best.is_none_or(|(bs, _, _)| s < bs) {
-                let hit = a * w[0] + b * w[1] + cc * w[2];
-                best = Some((s, c as usize, hit.to_array()));
-            }
-        }
-        Ok(best.map(|(_, id, hit)| (id, hit)))
+        let side = if entering {
+            Side::Entering
+        } else {
+            Side::Leaving
+        };
+        let hit = first_crossing(p0, p1, cand, side, |c| self.triangles[c as usize].map(p));
+        Ok(hit.map(|h| (h.triangle as usize, h.point)))
     }
 }
 
@@ -144,16 +132,18 @@ pub(crate) fn rest_crossings(
         .collect()
 }
 
-/// Whether `p` is inside the closed rest surface: an odd number of crossings of a ray to
-/// far outside.
+/// Whether `p` is inside the closed rest surface `triangles` over `rest` (outward,
+/// counter-clockwise winding): parry's point query on the oriented triangle mesh, which
+/// decides by the pseudo-normal of the closest feature (face, edge or vertex) and so has
+/// none of the edge-grazing cases of a ray-parity test.
 pub(crate) fn inside_rest_body(rest: &[[f64; 3]], triangles: &[[u32; 3]], p: [f64; 3]) -> bool {
-    let (lo, hi) = geometry::bounds(rest);
-    let reach = 4.0 * (DVec3::from(hi) - DVec3::from(lo)).length();
-    // A direction unlikely to graze edges of axis-aligned or regular meshes.
-    let ray = DVec3::new(0.5377, 0.6143, 0.5773);
-    let far = DVec3::from(p) + ray * reach;
-    let mut t = rest_crossings(rest, triangles, p, far.to_array());
-    t.sort_by(f64::total_cmp);
-    t.dedup_by(|x, y| (*x - *y).abs() < 1e-9);
-    t.len() % 2 == 1
+    use parry3d_f64::math::Vector;
+    use parry3d_f64::query::PointQuery;
+    use parry3d_f64::shape::{TriMesh, TriMeshFlags};
+    let vertices = rest.iter().map(|&x| Vector::from_array(x)).collect();
+    match TriMesh::with_flags(vertices, triangles.to_vec(), TriMeshFlags::ORIENTED) {
+        Ok(mesh) => mesh.contains_local_point(Vector::from_array(p)),
+        // No triangles: nothing is inside.
+        Err(_) => false,
+    }
 }
