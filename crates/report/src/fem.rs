@@ -1,4 +1,4 @@
-//! The finite element reference solutions ([`indentation`], [`column`]). Indentation: a
+//! The finite element reference solutions ([`indentation`], [`column()`]). Indentation: a
 //! converged quadratic-tetrahedron solution computed with scikit-fem by
 //! `scripts/fem_indentation.py` (see
 //! `reference/indentation_fem.md`), shipped as the punch force and the displacement on a
