@@ -4,7 +4,10 @@
 //! de Ribaupierre and Eagleson, "GPU accelerated needle insertion simulation using meshfree
 //! methods"). This facade re-exports the engine crates and adds the scene runner used by
 //! the `needlesim` command line tool: it steps a scene, writes a CSV row and a ParaView
-//! surface frame every few steps, and reports what a scene allocates.
+//! surface frame every few steps, and reports what a scene allocates. The command line
+//! tool (crate `needlesim-cli`) and the validation report with its PNG plots (crate
+//! `needlesim-report`) are crates of their own, so that this library pulls in no plotting
+//! or command line dependencies.
 //!
 //! ```no_run
 //! use needlesim::{run_scene, RunOptions, Scene};
@@ -20,8 +23,6 @@ pub mod frame;
 pub mod info;
 pub mod needle_output;
 pub mod output;
-pub mod plot;
-pub mod report;
 pub mod runner;
 
 pub use frame::FrameMetrics;

@@ -1,8 +1,8 @@
-//! The needle's output files: `needle_force.csv` (one row per step, streamed: rows are
-//! flushed at every frame once the tip has touched the tissue, and at the end) and plots of the needle force against depth and against time
-//! (drawn when the run ends, however it ends).
+//! The needle's output file `needle_force.csv`: one row per step, streamed (rows are
+//! flushed at every frame once the tip has touched the tissue, and at the end). Its plots
+//! against depth and time are drawn from it by the `needlesim` command line tool (crate
+//! `needlesim-report`, `needle_plots`).
 
-use crate::plot::{line_plot, Labels, Series};
 use needlesim_needle::{PunctureState, Simulation};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -79,45 +79,4 @@ impl NeedleCsv {
     pub fn path(&self) -> &Path {
         &self.path
     }
-}
-
-/// Draws both plots of the needle force into `dir`; returns their paths.
-pub fn plots(sim: &Simulation, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
-    let h = sim.history();
-    let depth: Vec<f64> = h.iter().map(|s| sim.depth_of(s.tip, s.direction)).collect();
-    let series = |x: &dyn Fn(usize) -> f64| -> [Series<'static>; 2] {
-        [
-            Series {
-                label: "axial",
-                colour: [200, 40, 40],
-                points: (0..h.len()).map(|i| (x(i), h[i].force.axial)).collect(),
-            },
-            Series {
-                label: "lateral",
-                colour: [40, 90, 200],
-                points: (0..h.len()).map(|i| (x(i), h[i].force.lateral)).collect(),
-            },
-        ]
-    };
-    let by_depth = dir.join("needle_force.png");
-    line_plot(
-        &by_depth,
-        &Labels {
-            title: "needle force against depth",
-            x: "tip depth past first contact (mm)",
-            y: "force on needle (N)",
-        },
-        &series(&|i| depth[i] * 1e3),
-    )?;
-    let by_time = dir.join("needle_force_time.png");
-    line_plot(
-        &by_time,
-        &Labels {
-            title: "needle force against time",
-            x: "time (s)",
-            y: "force on needle (N)",
-        },
-        &series(&|i| h[i].time),
-    )?;
-    Ok(vec![by_depth, by_time])
 }

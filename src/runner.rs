@@ -313,8 +313,8 @@ impl Outputs {
         Ok(())
     }
 
-    /// Writes what is left (the needle rows since the last frame, the needle plots) and
-    /// returns every file written.
+    /// Writes what is left (the needle rows since the last frame) and returns every file
+    /// written.
     fn finish(self, sim: &Simulation) -> Result<Vec<PathBuf>, RunError> {
         let dir = self.dir;
         let mut files = Vec::new();
@@ -331,7 +331,6 @@ impl Outputs {
         if let Some(mut w) = self.needle {
             w.append(sim, true).map_err(io_error(&dir))?;
             files.push(w.path().to_path_buf());
-            files.extend(crate::needle_output::plots(sim, &dir).map_err(io_error(&dir))?);
         }
         Ok(files)
     }
@@ -339,12 +338,11 @@ impl Outputs {
 
 /// Builds and runs a scene. `progress(steps_done, steps_total)` is called after every
 /// frame. A scene with a `[needle]` table also writes the needle force of every step
-/// (`needle_force.csv`) and its plots against depth and time (`needle_force.png`,
-/// `needle_force_time.png`).
+/// (`needle_force.csv`; the `needlesim` command line tool draws its plots from it).
 ///
 /// Output is streamed (see [`crate::output`]): when the run stops early (a divergence,
-/// a needle error, [`RunOptions::stop`]), every file is complete up to the last frame and
-/// the needle plots are drawn before the error is returned. A run first removes the files
+/// a needle error, [`RunOptions::stop`]), every file is complete up to the last frame
+/// (the needle rows up to the last step) before the error is returned. A run first removes the files
 /// an earlier run left in its folder ([`crate::output::clear_previous_run`]).
 pub fn run_scene(
     scene: &Scene,

@@ -1,7 +1,7 @@
 //! The stable time step estimated from the model (`core::stability`) against the
 //! behaviour of the time stepping itself: every model stays bounded just below the
 //! estimate and runs away above it. The measured limit by bisection, next to the
-//! estimate, is the stable-dt map of `needlesim report` (`src/report/stable_dt.rs`).
+//! estimate, is the stable-dt map of `needlesim report` (`crates/report/src/stable_dt.rs`).
 
 mod common;
 use common::*;

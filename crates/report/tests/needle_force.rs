@@ -12,10 +12,10 @@ use needlesim::needle::{NeedleSample, PunctureState, Simulation, SimulationError
 use needlesim::{CpuBackend, Scene, Threading};
 use std::path::Path;
 
-const INSERT_EXTRACT: &str = include_str!("../scenes/needle_insert_extract.toml");
+const INSERT_EXTRACT: &str = include_str!("../../../scenes/needle_insert_extract.toml");
 
 fn run(text: &str, steps: u64) -> Simulation {
-    let scene = Scene::from_toml_str(text, Path::new("scenes")).unwrap();
+    let scene = Scene::from_toml_str(text, Path::new("../../scenes")).unwrap();
     let prep = Simulation::prepare(&scene).unwrap();
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel).unwrap();
     let mut sim = prep.start(Box::new(b)).unwrap();
@@ -25,13 +25,13 @@ fn run(text: &str, steps: u64) -> Simulation {
 
 /// Slope, R^2, residual standard deviation and mean y of a least-squares line.
 fn line_fit(x: &[f64], y: &[f64]) -> (f64, f64, f64, f64) {
-    let (b, r2, sd) = needlesim::report::needle::line_fit(x, y);
+    let (b, r2, sd) = needlesim_report::needle::line_fit(x, y);
     (b, r2, sd, y.iter().sum::<f64>() / y.len() as f64)
 }
 
 /// Median absolute step-to-step change over the mean magnitude.
 fn relative_chatter(v: &[f64]) -> f64 {
-    needlesim::report::needle::step_change(v)
+    needlesim_report::needle::step_change(v)
 }
 
 /// Depth past the entry and axial force of the Inside steps up to `t_end`, without the
@@ -104,7 +104,7 @@ fn insert_hold_extract_force_is_linear_smooth_and_negative_on_extraction() {
 /// with `model = "paper"` changes by far more.
 #[test]
 fn rotation_and_pause_do_not_chatter() {
-    let text = std::fs::read_to_string("scenes/paper_insertion_lshm.toml").unwrap();
+    let text = std::fs::read_to_string("../../scenes/paper_insertion_lshm.toml").unwrap();
     let sim = run(&text, 4500);
     let pick = |a: f64, b: f64, f: &dyn Fn(&NeedleSample) -> f64| -> Vec<f64> {
         sim.history()
@@ -190,7 +190,7 @@ fn needle_pushed_through_leaves_by_the_far_side_and_comes_back() {
            [[needle.keyframe]]\naction = \"extract\"\nspeed = 0.05\nduration = 2.7\n";
     // A free far face (held on the sides instead) so that the needle can leave there.
     let text = text.replace("axis = \"x\"\nabove = 0.099", "axis = \"y\"\nbelow = 0.001");
-    let scene = Scene::from_toml_str(&text, Path::new("scenes")).unwrap();
+    let scene = Scene::from_toml_str(&text, Path::new("../../scenes")).unwrap();
     let prep = Simulation::prepare(&scene).unwrap();
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
     let mut sim = prep.start(Box::new(b)).unwrap();
@@ -230,7 +230,7 @@ fn a_needle_that_loses_its_nodes_is_an_error() {
         "friction = { coefficient = 0.3 }\ncutting = 0.05",
         "friction = { model = \"paper\", static_threshold = 0.0, dynamic = 0.2, viscous = 1e4 }",
     );
-    let scene = Scene::from_toml_str(&text, Path::new("scenes")).unwrap();
+    let scene = Scene::from_toml_str(&text, Path::new("../../scenes")).unwrap();
     let prep = Simulation::prepare(&scene).unwrap();
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
     let mut sim = prep.start(Box::new(b)).unwrap();

@@ -54,7 +54,7 @@ fn run_default_scene_writes_csv_and_paraview_frames() {
 
 #[test]
 fn info_lists_the_arrays_of_the_chosen_model_only() {
-    let root = env!("CARGO_MANIFEST_DIR");
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
     let o = needlesim()
         .args(["info", &format!("{root}/scenes/cube_sag_msm.toml")])
         .output()
@@ -101,7 +101,7 @@ fn a_bad_scene_fails_with_a_message_not_a_panic() {
 
 #[test]
 fn every_shipped_scene_loads() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();

@@ -43,7 +43,7 @@ fn sim_of(text: &str, base: &Path) -> Result<Simulation, ReportError> {
         .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
     let prep = Simulation::prepare(&scene)?;
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
-        .map_err(crate::runner::RunError::from)?;
+        .map_err(needlesim::runner::RunError::from)?;
     let mut sim = prep.start(Box::new(b))?;
     sim.step_n(scene.run.steps)?;
     Ok(sim)
@@ -114,7 +114,7 @@ fn pick(h: &[NeedleSample], a: f64, b: f64, f: fn(&NeedleSample) -> f64) -> Vec<
 /// study at 648 and 4,913 nodes; otherwise the liver scene at 10 mm and the slope study
 /// with the needle spacing halved only.
 pub fn run_needle(full: bool, progress: &mut dyn FnMut(&str)) -> Result<NeedleReport, ReportError> {
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
     let read = |name: &str| {
         std::fs::read_to_string(scenes.join(name)).map_err(|source| ReportError::Io {
             path: scenes.join(name).display().to_string(),

@@ -9,7 +9,7 @@
 //! cases use the paper's experiment (20 cm cube, needle along +x at 5 cm/s).
 
 use super::cases::{ModelId, ReportError, CUBE, NEIGHBOURS, YOUNG};
-use crate::runner::make_backend;
+use needlesim::runner::make_backend;
 use needlesim_core::math::{quat_to_mat, Mat3};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::{NodeField, Scene, SimError};

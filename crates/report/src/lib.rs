@@ -1,13 +1,26 @@
-//! The accuracy and stability report (`needlesim report`): reference cases with known
-//! answers run per model, resolution, time step and backend ([`cases`]), the stable time
-//! step map ([`stable_dt`]) and the extreme cases ([`extreme`]). Writes `accuracy.csv`,
-//! `timing.csv`, `stable_dt.csv`, `extreme.csv`, `work_precision_<case>.png`,
-//! `error_vs_nodes.png`, `stable_dt.png` and `report.md` into one directory.
+//! # needlesim-report
+//!
+//! The accuracy and stability report of [`needlesim`] (`needlesim report`):
+//! reference cases with known answers run per model, resolution, time step and backend
+//! ([`cases`]), the stable time step map ([`stable_dt`](mod@stable_dt)) and the extreme cases
+//! ([`extreme`]). Writes `accuracy.csv`, `timing.csv`, `stable_dt.csv`, `extreme.csv`,
+//! `work_precision_<case>.png`, `error_vs_nodes.png`, `stable_dt.png` and `report.md` into
+//! one directory.
+//!
+//! It also holds the PNG line plots ([`plot`](mod@plot), drawn with `plotters` and an embedded
+//! DejaVu Sans font) and the needle force plots of a run ([`needle_plots`]), which the
+//! `needlesim` command line tool draws from the `needle_force.csv` a run writes. None of
+//! this is part of the `needlesim` library, so that it and the Python module stay free of
+//! the plotting dependencies.
+
+#![warn(missing_docs)]
 
 pub mod cases;
 pub mod extreme;
 pub mod fem;
 pub mod needle;
+pub mod needle_plots;
+pub mod plot;
 pub mod stable_dt;
 
 use crate::plot::{plot, Axes, Labels, Series};

@@ -1,4 +1,4 @@
-//! The finite element reference solutions ([`indentation`], [`column`]). Indentation: a
+//! The finite element reference solutions ([`indentation`], [`column()`]). Indentation: a
 //! converged quadratic-tetrahedron solution computed with scikit-fem by
 //! `scripts/fem_indentation.py` (see
 //! `reference/indentation_fem.md`), shipped as the punch force and the displacement on a
@@ -8,8 +8,8 @@
 use super::cases::{ReportError, COLUMN_HEIGHT, COLUMN_RADIUS, CUBE, PUNCH_DEPTH};
 use std::sync::OnceLock;
 
-const CSV: &str = include_str!("../../reference/indentation_fem.csv");
-const MD: &str = include_str!("../../reference/indentation_fem.md");
+const CSV: &str = include_str!("../../../reference/indentation_fem.csv");
+const MD: &str = include_str!("../../../reference/indentation_fem.md");
 const POINTS: usize = 17;
 /// Punch depth of the shipped solution, m (checked against `indentation_fem.md`).
 const REFERENCE_DEPTH: f64 = 0.002;
@@ -113,8 +113,8 @@ pub struct Column {
     u: Vec<[f64; 2]>,
 }
 
-const COLUMN_CSV: &str = include_str!("../../reference/column_fem.csv");
-const COLUMN_MD: &str = include_str!("../../reference/column_fem.md");
+const COLUMN_CSV: &str = include_str!("../../../reference/column_fem.csv");
+const COLUMN_MD: &str = include_str!("../../../reference/column_fem.md");
 const COLUMN_R_POINTS: usize = 11;
 const COLUMN_Y_POINTS: usize = 41;
 

@@ -35,7 +35,7 @@
 //! of two consecutive windows of `1 / omega_slow` (a speed criterion does not work: f32
 //! round-off of the positions keeps nodes jittering at a level that depends on the model).
 
-use crate::runner::{make_backend, RunError};
+use needlesim::runner::{make_backend, RunError};
 use needlesim_core::backend::check_bounded;
 use needlesim_core::calibration;
 use needlesim_core::integrator::StepParams;
@@ -861,7 +861,7 @@ fn prepare_indentation(t: &mut Tissue, rest: &[[f64; 3]], h: f64) {
 }
 
 fn indentation(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
-    let reference = crate::report::fem::indentation()?;
+    let reference = crate::fem::indentation()?;
     let s = setup(CaseId::Indentation, model, spec)?;
     let dt = s.dt;
     let punch: Vec<u32> = punch_nodes(&s.rest, s.h)
@@ -954,7 +954,7 @@ fn column_omega() -> f64 {
 }
 
 fn column(model: ModelId, spec: &RunSpec) -> Result<CaseResult, ReportError> {
-    let reference = crate::report::fem::column()?;
+    let reference = crate::fem::column()?;
     let s = setup(CaseId::Column, model, spec)?;
     let masses = &s.tissue.masses;
     let total: f64 = masses.iter().sum();

@@ -4,8 +4,8 @@
 //! error (never a panic, never another error).
 
 use needlesim::core::scene::BackendChoice;
-use needlesim::report::cases::{run_case, CaseId, ModelId, RunSpec};
-use needlesim::report::extreme::{run_extreme, ExtremeCase, ExtremeSize, Outcome};
+use needlesim_report::cases::{run_case, CaseId, ModelId, RunSpec};
+use needlesim_report::extreme::{run_extreme, ExtremeCase, ExtremeSize, Outcome};
 
 fn spec(level: usize) -> RunSpec {
     RunSpec {
@@ -51,7 +51,7 @@ const CONVERGING: [ModelId; 5] = [
 ];
 
 /// `case` for `model` at the three coarsest levels; every run must settle.
-fn three_levels(case: CaseId, model: ModelId) -> Vec<needlesim::report::cases::CaseResult> {
+fn three_levels(case: CaseId, model: ModelId) -> Vec<needlesim_report::cases::CaseResult> {
     let r: Vec<_> = (0..3)
         .map(|level| run_case(case, model, &spec(level)).unwrap())
         .collect();

@@ -1,4 +1,5 @@
-//! `needlesim`: run a scene and write its frames, or describe what a scene builds.
+//! `needlesim`: run a scene and write its frames, describe what a scene builds, or write
+//! the validation report.
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -191,7 +192,7 @@ fn run(cli: Cli) -> Result<()> {
             full,
             backends,
         } => {
-            use needlesim::report::{run_report, ReportOptions, ReportSize};
+            use needlesim_report::{run_report, ReportOptions, ReportSize};
             let timing_backends = if backends.is_empty() {
                 let mut b = vec![BackendChoice::Cpu, BackendChoice::CpuParallel];
                 if GpuContext::new(0).is_ok() {
@@ -291,6 +292,24 @@ fn run(cli: Cli) -> Result<()> {
             );
             let summary = run_scene(&scene, &options, |done, _| bar.set_position(done));
             bar.finish_and_clear();
+            // The needle force plots, from needle_force.csv, however the run ended (a run
+            // that failed before writing anything leaves an earlier run's CSV, and so its
+            // plots, as they were).
+            let plots = if out.join("needle_force.csv").exists() {
+                let plots = needlesim_report::needle_plots::needle_plots(&out).with_context(|| {
+                    format!("drawing the needle force plots in {}", out.display())
+                });
+                match (&summary, plots) {
+                    (_, Ok(p)) => p,
+                    (Ok(_), Err(e)) => return Err(e),
+                    (Err(_), Err(e)) => {
+                        eprintln!("warning: {}", message(&e));
+                        Vec::new()
+                    }
+                }
+            } else {
+                Vec::new()
+            };
             let summary = summary.with_context(|| {
                 format!(
                     "running scene `{stem}` (output so far, complete up to its last frame: {})",
@@ -336,7 +355,7 @@ fn run(cli: Cli) -> Result<()> {
             say!(
                 "output      {} ({} files: frames.csv, surface.pvd for ParaView{needle_files})",
                 out.display(),
-                summary.files.len()
+                summary.files.len() + plots.len()
             )?;
         }
     }

@@ -40,9 +40,9 @@ fn cube(model: ModelId, scale: f64, side: usize, dt: f64) -> Result<CpuBackend, 
         model.damping_floor(young, h)
     );
     let scene = Scene::from_toml_str(&text, Path::new(".")).expect("valid cube scene");
-    let tissue = Tissue::from_scene(&scene).map_err(crate::runner::RunError::from)?;
+    let tissue = Tissue::from_scene(&scene).map_err(needlesim::runner::RunError::from)?;
     let mut b =
-        CpuBackend::new(tissue, Threading::Parallel).map_err(crate::runner::RunError::from)?;
+        CpuBackend::new(tissue, Threading::Parallel).map_err(needlesim::runner::RunError::from)?;
     let n = b.n_active();
     let mut p = vec![[0.0f32; 4]; n];
     b.read(NodeField::Position, 0..n, &mut p)?;

@@ -8,8 +8,8 @@
 //! jerk, 6 needle rotation, 7 insert/extract cycles) at the full report's size.
 
 use needlesim::core::scene::BackendChoice;
-use needlesim::report::cases::{run_case, CaseId, ModelId, RunSpec};
-use needlesim::report::extreme::{run_extreme, ExtremeCase, ExtremeSize};
+use needlesim_report::cases::{run_case, CaseId, ModelId, RunSpec};
+use needlesim_report::extreme::{run_extreme, ExtremeCase, ExtremeSize};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -137,7 +137,7 @@ fn a_rerun_clears_the_previous_runs_frames() {
 fn a_closed_stdout_ends_the_cli_quietly() {
     let mut child = needlesim()
         .args(["info"])
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cube_sag_deb.toml"))
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cube_sag_deb.toml"))
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

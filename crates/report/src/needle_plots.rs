@@ -1,0 +1,112 @@
+//! The needle force plots of a run: `needle_force.png` (force against depth) and
+//! `needle_force_time.png` (force against time), drawn from the `needle_force.csv` that
+//! [`needlesim::run_scene`] writes for a scene with a needle. The `needlesim run` command
+//! draws them when the run ends, however it ends (the CSV is complete up to the last
+//! step then).
+
+use crate::plot::{line_plot, Labels, Series};
+use needlesim::needle_output::NEEDLE_CSV_HEADER;
+use std::path::{Path, PathBuf};
+
+/// The force plot files, by name, in a run's output folder.
+pub const NEEDLE_PLOT_FILES: [&str; 2] = ["needle_force.png", "needle_force_time.png"];
+
+/// One row of `needle_force.csv`: time (s), depth (m), axial and lateral force (N).
+fn parse(text: &str) -> Result<Vec<[f64; 4]>, String> {
+    let mut lines = text.lines();
+    if lines.next() != Some(NEEDLE_CSV_HEADER) {
+        return Err("not a needle_force.csv (unexpected header)".into());
+    }
+    lines
+        .enumerate()
+        .map(|(k, line)| {
+            let c: Vec<&str> = line.split(',').collect();
+            let v = |i: usize| -> Result<f64, String> {
+                c.get(i)
+                    .and_then(|s| s.parse().ok())
+                    .ok_or_else(|| format!("line {}: column {} is not a number", k + 2, i + 1))
+            };
+            Ok([v(1)?, v(2)?, v(3)?, v(4)?])
+        })
+        .collect()
+}
+
+/// Draws both needle force plots into `dir` from `dir/needle_force.csv`; returns their
+/// paths.
+pub fn needle_plots(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let csv = dir.join("needle_force.csv");
+    let rows = parse(&std::fs::read_to_string(&csv)?).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("{}: {e}", csv.display()),
+        )
+    })?;
+    let series = |x: &dyn Fn(&[f64; 4]) -> f64| -> [Series<'static>; 2] {
+        [
+            Series {
+                label: "axial",
+                colour: [200, 40, 40],
+                points: rows.iter().map(|r| (x(r), r[2])).collect(),
+            },
+            Series {
+                label: "lateral",
+                colour: [40, 90, 200],
+                points: rows.iter().map(|r| (x(r), r[3])).collect(),
+            },
+        ]
+    };
+    let by_depth = dir.join(NEEDLE_PLOT_FILES[0]);
+    line_plot(
+        &by_depth,
+        &Labels {
+            title: "needle force against depth",
+            x: "tip depth past first contact (mm)",
+            y: "force on needle (N)",
+        },
+        &series(&|r| r[1] * 1e3),
+    )?;
+    let by_time = dir.join(NEEDLE_PLOT_FILES[1]);
+    line_plot(
+        &by_time,
+        &Labels {
+            title: "needle force against time",
+            x: "time (s)",
+            y: "force on needle (N)",
+        },
+        &series(&|r| r[0]),
+    )?;
+    Ok(vec![by_depth, by_time])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn draws_both_plots_from_the_csv() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut csv = format!("{NEEDLE_CSV_HEADER}\n");
+        for k in 0..200 {
+            let t = k as f64 * 1e-3;
+            csv.push_str(&format!(
+                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4\n",
+                t * 0.01 - 1e-4,
+                (t * 30.0).sin(),
+                0.1 * t
+            ));
+        }
+        std::fs::write(dir.path().join("needle_force.csv"), csv).unwrap();
+        let files = needle_plots(dir.path()).unwrap();
+        assert_eq!(files.len(), 2);
+        for f in files {
+            assert!(
+                std::fs::metadata(&f).unwrap().len() > 5000,
+                "{}",
+                f.display()
+            );
+        }
+        std::fs::write(dir.path().join("needle_force.csv"), "a,b\n1,2\n").unwrap();
+        let e = needle_plots(dir.path()).unwrap_err();
+        assert!(e.to_string().contains("unexpected header"), "{e}");
+    }
+}
