@@ -8,7 +8,9 @@
 //! `r < 2%`, degraded otherwise (for example an inverted cube that stays inverted). Needle
 //! cases use the paper's experiment (20 cm cube, needle along +x at 5 cm/s).
 
-use super::cases::{ModelId, ReportError, CUBE, NEIGHBOURS, YOUNG};
+use super::cases::ModelId;
+use crate::constants::{CUBE, NEIGHBOURS, YOUNG};
+use crate::error::ReportError;
 use needlesim::runner::make_backend;
 use needlesim_core::math::{quat_to_mat, Mat3};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;

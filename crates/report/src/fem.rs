@@ -5,7 +5,8 @@
 //! 17 x 17 x 17 grid over the cube, interpolated trilinearly. The solution is linear, so
 //! force and displacements are scaled from the reference depth (2 mm) to [`PUNCH_DEPTH`].
 
-use super::cases::{ReportError, COLUMN_HEIGHT, COLUMN_RADIUS, CUBE, PUNCH_DEPTH};
+use crate::constants::{COLUMN_HEIGHT, COLUMN_RADIUS, CUBE, PUNCH_DEPTH};
+use crate::error::ReportError;
 use std::sync::OnceLock;
 
 const CSV: &str = include_str!("../../../reference/indentation_fem.csv");

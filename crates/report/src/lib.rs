@@ -16,6 +16,8 @@
 #![warn(missing_docs)]
 
 pub mod cases;
+pub mod constants;
+pub mod error;
 pub mod extreme;
 pub mod fem;
 pub mod needle;
@@ -24,7 +26,8 @@ pub mod plot;
 pub mod stable_dt;
 
 use crate::plot::{plot, Axes, Labels, Series};
-use cases::{run_case, CaseId, CaseResult, ModelId, ReportError, RunSpec};
+use cases::{run_case, CaseId, CaseResult, ModelId, RunSpec};
+pub use error::ReportError;
 use extreme::{run_extreme, ExtremeCase, ExtremeResult, ExtremeSize, Outcome};
 use needlesim_core::scene::BackendChoice;
 use stable_dt::{stable_dt, StableDt};

@@ -7,7 +7,7 @@
 //! and a force-depth slope after puncture of 35 to 59 N/m (J Endourol 2016,
 //! doi 10.1089/end.2016.0342).
 
-use super::cases::ReportError;
+use crate::error::ReportError;
 use crate::plot::{line_plot, Labels, Series};
 use needlesim_core::{CpuBackend, Scene, Threading};
 use needlesim_needle::{NeedleSample, PunctureState, Simulation};

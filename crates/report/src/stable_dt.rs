@@ -7,7 +7,9 @@
 //! no free node reaches 100 times the speed the perturbation starts at the highest
 //! frequency, `1e-4 m * sqrt(lambda_max)`.
 
-use super::cases::{ModelId, ReportError, CUBE, NEIGHBOURS, YOUNG};
+use super::cases::ModelId;
+use crate::constants::{CUBE, NEIGHBOURS, YOUNG};
+use crate::error::ReportError;
 use needlesim_core::backend::check_bounded;
 use needlesim_core::stability::max_eigenvalue;
 use needlesim_core::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
