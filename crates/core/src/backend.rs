@@ -126,7 +126,7 @@ pub fn check_bounded<B: Backend + ?Sized>(backend: &mut B, max_speed: f64) -> Re
     let fastest = (0..n)
         .filter(|&i| p[i][3] > 0.0)
         .map(|i| {
-            let s = (0..3).map(|a| (v[i][a] as f64).powi(2)).sum::<f64>().sqrt();
+            let s = crate::math::xyz(v[i]).as_dvec3().length();
             (s, i)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0));

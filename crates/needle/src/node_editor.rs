@@ -26,7 +26,8 @@
 //! estimate times the factor the build normalised the volumes with (no global
 //! renormalisation, which would touch every node).
 
-use needlesim_core::math::{quat_to_mat, Vec4, QUAT_IDENTITY};
+use glam::{Mat3, Quat};
+use needlesim_core::math::Vec4;
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::models::ShapeInfo;
 use needlesim_core::neighbours::{kernel_length, kernel_weight, Neighbours};
@@ -292,8 +293,10 @@ impl NodeEditor {
         let a32: [[f32; 3]; 3] = std::array::from_fn(|r| {
             std::array::from_fn(|q| (a_mat[r][q] / scale.max(1e-300)) as f32)
         });
-        let q = extract_rotation(&a32, QUAT_IDENTITY, 50);
-        (c, c0, quat_to_mat(q), q)
+        let a32 = Mat3::from_cols_array_2d(&a32).transpose();
+        let q = extract_rotation(&a32, Quat::IDENTITY, 50);
+        let rot = Mat3::from_quat(q).transpose().to_cols_array_2d();
+        (c, c0, rot, q.to_array())
     }
 
     /// [`NodeEditor::add_node`] with an elastic offset (world frame, m): the rest position
