@@ -418,7 +418,7 @@ mod tests {
                 .filter(|&j| j != i)
                 .map(|j| {
                     (
-                        (0..3).map(|a| (pts[j][a] - pts[i][a]).powi(2)).sum(),
+                        DVec3::from(pts[j]).distance_squared(DVec3::from(pts[i])),
                         j as u32,
                     )
                 })
