@@ -95,7 +95,7 @@ fn stretched_bar(material: &str, eps: f64) -> BarResult {
     BarResult {
         reaction: -reaction / (0.1 * 0.1) / (E * eps),
         lateral: (w - w0) / w0 / (-NU * eps),
-        centre_stress: s[0][0] as f64 / (E * eps),
+        centre_stress: s.x_axis.x as f64 / (E * eps),
     }
 }
 

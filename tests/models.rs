@@ -98,7 +98,7 @@ fn rigid_rotation_gives_zero_force() {
 /// cube, whose lattice neighbourhoods couple stretch and shear).
 #[test]
 fn stretched_cube_returns_to_rest() {
-    use needlesim::core::math::{quat_to_mat, QUAT_IDENTITY};
+    use needlesim::core::glam::{Mat3, Quat};
     use needlesim::core::models::mueller2016_rotation::extract_rotation;
     // Damping 20/s: enough for the paper's non-conservative shape matching forces at
     // k_s = 20 N/m (see local_shape_matching module docs).
@@ -123,7 +123,10 @@ fn stretched_cube_returns_to_rest() {
                 }
             }
         }
-        let rot = quat_to_mat(extract_rotation(&m, QUAT_IDENTITY, 500));
+        let m = Mat3::from_cols_array_2d(&m).transpose();
+        let rot = Mat3::from_quat(extract_rotation(&m, Quat::IDENTITY, 500))
+            .transpose()
+            .to_cols_array_2d();
         let worst = (0..n)
             .map(|i| {
                 let d: [f64; 3] = std::array::from_fn(|a| rest[i][a] - cr[a]);

@@ -139,7 +139,7 @@ pub fn check_arrays(
         .enumerate()
         .filter(|(_, (p, _))| p[3] > 0.0)
         .map(|(i, (_, v))| {
-            let s = (0..3).map(|a| (v[a] as f64).powi(2)).sum::<f64>().sqrt();
+            let s = crate::math::xyz(*v).as_dvec3().length();
             (s, i)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0));

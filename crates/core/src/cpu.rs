@@ -5,8 +5,7 @@
 use crate::backend::{check_range, check_rows, check_shape_write, Backend, NodeField};
 use crate::error::SimError;
 use crate::integrator::integrate_node;
-use crate::math::quat_to_mat;
-use crate::math::Vec4;
+use crate::math::{with_w, Vec4};
 use crate::models::{
     debunne_meshfree, local_shape_matching, mass_spring, mls, point_based, Corotation, ShapeInfo,
 };
@@ -14,6 +13,7 @@ use crate::scene::{
     DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
 };
 use crate::tissue::Tissue;
+use glam::{Mat3, Quat};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -217,9 +217,17 @@ impl Backend for CpuBackend {
                             &mut centre[..n],
                             &mut rotation[..n],
                             |i, c, q| {
-                                (*c, *q) = local_shape_matching::cluster_frame(
-                                    i, pos, rest, sv[i], nb, iters, *q,
+                                let (c_i, q_i) = local_shape_matching::cluster_frame(
+                                    i,
+                                    pos,
+                                    rest,
+                                    sv[i],
+                                    nb,
+                                    iters,
+                                    Quat::from_array(*q),
                                 );
+                                *c = with_w(c_i, 0.0);
+                                *q = q_i.to_array();
                             },
                         );
                         let (centre, rotation) = (&centre[..], &rotation[..]);
@@ -267,9 +275,15 @@ impl Backend for CpuBackend {
                             &mut rotation[..n],
                             |i, q, rot| {
                                 let (_, r) = local_shape_matching::cluster_frame(
-                                    i, pos, rest, sv[i], nb, iters, *rot,
+                                    i,
+                                    pos,
+                                    rest,
+                                    sv[i],
+                                    nb,
+                                    iters,
+                                    Quat::from_array(*rot),
                                 );
-                                *rot = r;
+                                *rot = r.to_array();
                                 *q = debunne_meshfree::first_pass(
                                     i,
                                     pos,
@@ -280,7 +294,7 @@ impl Backend for CpuBackend {
                                     lambda,
                                     mu,
                                     hg,
-                                    Some(&quat_to_mat(r)),
+                                    Some(&Mat3::from_quat(r)),
                                 );
                             },
                         );

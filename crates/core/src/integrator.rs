@@ -6,8 +6,9 @@
 //! A node with inverse mass 0 (position w lane) is fixed: its velocity is zero and it does
 //! not move.
 
-use crate::math::Vec4;
+use crate::math::{with_w, xyz, Vec4};
 use crate::scene::Physics;
+use glam::Vec3;
 
 /// Time-stepping parameters in the f32 form the kernels use.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,8 +40,7 @@ pub fn integrate_node(x: &mut Vec4, v: &mut Vec4, f: Vec4, p: &StepParams) {
         *v = [0.0; 4];
         return;
     }
-    for a in 0..3 {
-        v[a] = (v[a] + p.dt * (f[a] * inv_m + p.gravity[a])) * p.damping_factor;
-        x[a] += p.dt * v[a];
-    }
+    let vel = (xyz(*v) + p.dt * (xyz(f) * inv_m + Vec3::from_array(p.gravity))) * p.damping_factor;
+    *x = with_w(xyz(*x) + p.dt * vel, inv_m);
+    *v = with_w(vel, v[3]);
 }

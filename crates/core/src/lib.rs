@@ -35,6 +35,10 @@ pub mod state;
 pub mod stepper;
 pub mod tissue;
 
+/// The vector math crate the kernels use (f32 `Vec3`, `Mat3`, `Quat`; f64 `DVec3`),
+/// re-exported so that callers of the model functions use the same version.
+pub use glam;
+
 pub use backend::{Backend, NodeField};
 pub use cpu::{CpuBackend, Threading};
 pub use error::{GeometryError, SceneError, SimError};

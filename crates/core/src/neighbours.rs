@@ -7,8 +7,14 @@
 //! paper's mutuality rule (section 5.1 and its footnote): a pair that is not in both lists
 //! gets weight 0 in the list that holds it. A weight of 0 marks an empty or broken slot;
 //! every model skips such slots, so a mutual pair always acts on both of its nodes.
+//!
+//! The k-nearest search is a hand-written uniform grid rather than a spatial-index crate
+//! (a k-d tree such as kiddo or rstar): those order equidistant candidates arbitrarily or
+//! by index, and the point-symmetric tie-break of [`closer`] is what keeps lattice
+//! neighbourhoods symmetric (see there).
 
 use crate::scene::WeightKernel;
+use glam::DVec3;
 
 /// Fewest live neighbours (non-zero weight) a mesh node must keep. With none it feels no
 /// elastic force and leaves the body; [`crate::tissue::Tissue::from_cloud`] refuses such a
@@ -294,8 +300,7 @@ impl UniformGrid {
                 if Some(idx as usize) == exclude {
                     return;
                 }
-                let q = points[idx as usize];
-                let d2 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum::<f64>();
+                let d2 = DVec3::from(points[idx as usize]).distance_squared(DVec3::from(p));
                 insert_sorted(out, k, (d2, idx), |a, b| closer(points, p, a, b));
             });
             // Every point in ring r+1 or beyond is at least r * cell away from p.
@@ -349,11 +354,10 @@ fn closer(points: &[[f64; 3]], p: [f64; 3], a: &(f64, u32), b: &(f64, u32)) -> b
         return a.0 < b.0;
     }
     let tol = 1e-6 * scale.sqrt();
-    let canonical = |i: u32| -> ([f64; 3], bool) {
-        let q = points[i as usize];
-        let d = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
-        match d.iter().find(|c| c.abs() > tol) {
-            Some(&c) if c < 0.0 => ([-d[0], -d[1], -d[2]], true),
+    let canonical = |i: u32| -> (DVec3, bool) {
+        let d = DVec3::from(points[i as usize]) - DVec3::from(p);
+        match d.to_array().into_iter().find(|c| c.abs() > tol) {
+            Some(c) if c < 0.0 => (-d, true),
             _ => (d, false),
         }
     };
@@ -414,7 +418,7 @@ mod tests {
                 .filter(|&j| j != i)
                 .map(|j| {
                     (
-                        (0..3).map(|a| (pts[j][a] - pts[i][a]).powi(2)).sum(),
+                        DVec3::from(pts[j]).distance_squared(DVec3::from(pts[i])),
                         j as u32,
                     )
                 })

@@ -216,8 +216,8 @@ pub struct AxisRotation {
 impl AxisRotation {
     /// The rotation matrix (Rodrigues' formula), rows first.
     pub fn matrix(&self) -> [[f64; 3]; 3] {
-        let l = self.axis.iter().map(|c| c * c).sum::<f64>().sqrt();
-        let [x, y, z] = self.axis.map(|c| c / l);
+        let axis = glam::DVec3::from(self.axis);
+        let [x, y, z] = (axis / axis.length()).to_array();
         let (s, c) = self.degrees.to_radians().sin_cos();
         let t = 1.0 - c;
         [
@@ -615,7 +615,9 @@ impl NodeSet {
                 .iter()
                 .filter_map(|q| {
                     (0..rest.len()).min_by(|&a, &b| {
-                        let d = |i: usize| (0..3).map(|c| (rest[i][c] - q[c]).powi(2)).sum::<f64>();
+                        let d = |i: usize| {
+                            glam::DVec3::from(rest[i]).distance_squared(glam::DVec3::from(*q))
+                        };
                         d(a).total_cmp(&d(b))
                     })
                 })
@@ -644,7 +646,7 @@ impl NodeSet {
             }
             NodeSet::Box { min, max } => (0..3).all(|a| p[a] >= min[a] && p[a] <= max[a]),
             NodeSet::Sphere { centre, radius } => {
-                (0..3).map(|a| (p[a] - centre[a]).powi(2)).sum::<f64>() <= radius * radius
+                glam::DVec3::from(p).distance_squared(glam::DVec3::from(*centre)) <= radius * radius
             }
             NodeSet::Points(_) => false,
         }
@@ -1314,7 +1316,7 @@ impl Scene {
                 }
                 if let Some(r) = g.rotate {
                     finite("tissue.geometry.rotate.degrees", r.degrees)?;
-                    let length = r.axis.iter().map(|c| c * c).sum::<f64>().sqrt();
+                    let length = glam::DVec3::from(r.axis).length();
                     if !(length.is_finite() && length > 0.0) {
                         return Err(SceneError::invalid(
                             "tissue.geometry.rotate.axis",

@@ -348,7 +348,7 @@ fn build_boundary(
                     let a = area[i as usize];
                     match l.load {
                         crate::scene::SurfaceLoad::Traction(t) => {
-                            let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                            let len = glam::DVec3::from(a).length();
                             t.map(|c| c * len)
                         }
                         crate::scene::SurfaceLoad::Pressure(p) => a.map(|c| -p * c),

@@ -13,7 +13,7 @@ use needlesim_core::{Backend, NodeField, SimError, Tissue, Vec4};
 use std::ops::Range;
 use wgpu::util::DeviceExt;
 
-/// The uniform parameter block (`Params` in `shaders/common.wgsl`).
+/// The uniform parameter block (`Params` in the top-level `shaders/common.wgsl`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 struct Params {

@@ -1,7 +1,14 @@
-//! Compiled compute kernels: one WGSL file per kernel under `shaders/`, composed with the
-//! shared code at load time, one constructor per kernel. Pipelines use `layout: None` and
-//! bind groups are made from `get_bind_group_layout(0)`, so each entry point binds only what
-//! it uses. Kernels hold pipelines only; the buffers they run on live in [`crate::Buffers`].
+//! Compiled compute kernels: one WGSL file per kernel under the repository's top-level
+//! `shaders/`, composed with the shared code at load time, one constructor per kernel.
+//! Pipelines use `layout: None` and bind groups are made from `get_bind_group_layout(0)`, so
+//! each entry point binds only what it uses. Kernels hold pipelines only; the buffers they
+//! run on live in [`crate::Buffers`].
+//!
+//! The sources are read with `include_str!("../shaders/...")` through the relative symlink
+//! `crates/gpu/shaders -> ../../shaders`. `cargo package` follows a symlinked directory
+//! inside the package and stores the files it points to as ordinary files under
+//! `shaders/`, so the published crate compiles on its own (check with
+//! `cargo package -p needlesim-gpu --list`).
 
 const COMMON: &str = include_str!("../shaders/common.wgsl");
 const CLUSTER_FRAME: &str = include_str!("../shaders/cluster_frame.wgsl");

@@ -1,8 +1,8 @@
 //! # needlesim-gpu
 //!
-//! The wgpu compute backend: every tissue model as WGSL kernels (`shaders/`, one file per
-//! kernel plus shared code), on any GPU that wgpu drives (Vulkan, Metal, DX12) and on
-//! Mesa's software Vulkan driver (lavapipe) in CI. The CPU backend of `needlesim-core` is
+//! The wgpu compute backend: every tissue model as WGSL kernels (the repository's top-level
+//! `shaders/`, one file per kernel plus shared code), on any GPU that wgpu drives (Vulkan,
+//! Metal, DX12) and on Mesa's software Vulkan driver (lavapipe) in CI. The CPU backend of `needlesim-core` is
 //! the reference each kernel mirrors; the tests compare the two.
 //!
 //! ```no_run

@@ -26,8 +26,8 @@
 //! estimate times the factor the build normalised the volumes with (no global
 //! renormalisation, which would touch every node).
 
-use glam::{DMat3, DVec3, Mat3, Vec3};
-use needlesim_core::math::{quat_to_mat, Vec4, QUAT_IDENTITY};
+use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
+use needlesim_core::math::Vec4;
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::models::ShapeInfo;
 use needlesim_core::neighbours::{kernel_length, kernel_weight, Neighbours};
@@ -275,11 +275,8 @@ impl NodeEditor {
             a_mat += DMat3::from_cols(d * d0.x, d * d0.y, d * d0.z);
             scale += d0.length_squared();
         }
-        // extract_rotation and quat_to_mat take and give row-major f32 matrices.
-        let rows = a_mat.div_scalar(scale.max(1e-300)).transpose();
-        let q = extract_rotation(&rows.as_mat3().to_cols_array_2d(), QUAT_IDENTITY, 50);
-        let rot = Mat3::from_cols_array_2d(&quat_to_mat(q)).transpose();
-        (c, c0, rot.as_dmat3(), q)
+        let q = extract_rotation(&(a_mat / scale.max(1e-300)).as_mat3(), Quat::IDENTITY, 50);
+        (c, c0, Mat3::from_quat(q).as_dmat3(), q.to_array())
     }
 
     /// [`NodeEditor::add_node`] with an elastic offset (world frame, m): the rest position

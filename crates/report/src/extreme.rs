@@ -12,7 +12,7 @@ use super::cases::ModelId;
 use crate::constants::{CUBE, NEIGHBOURS, YOUNG};
 use crate::error::ReportError;
 use needlesim::runner::make_backend;
-use needlesim_core::math::{quat_to_mat, Mat3};
+use needlesim_core::glam::{Mat3, Quat};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::{NodeField, Scene, SimError};
 use needlesim_needle::{PunctureState, Simulation, SimulationError};
@@ -197,10 +197,12 @@ fn shape_residual(sim: &mut Simulation, rest: &[[f64; 3]]) -> Result<f64, Simula
         .sum::<f64>()
         .sqrt()
         .max(1e-300);
-    let a32: Mat3 = std::array::from_fn(|r| std::array::from_fn(|c| (a[r][c] / norm) as f32));
+    let a32: [[f32; 3]; 3] =
+        std::array::from_fn(|r| std::array::from_fn(|c| (a[r][c] / norm) as f32));
     // Start from the identity and iterate to convergence (a 180-degree error still moves).
-    let q = extract_rotation(&a32, [0.0, 0.0, 0.0, 1.0], 200);
-    let rot = quat_to_mat(q);
+    let a32 = Mat3::from_cols_array_2d(&a32).transpose();
+    let q = extract_rotation(&a32, Quat::IDENTITY, 200);
+    let rot = Mat3::from_quat(q).transpose().to_cols_array_2d();
     let mut sum = 0.0;
     for i in 0..n {
         for r in 0..3 {

@@ -140,8 +140,8 @@ impl NodeGrid {
                         }
                         let q = [c[0] + dx, c[1] + dy, c[2] + dz];
                         for &n in &self.bins[self.flat(q)] {
-                            let x = nodes[n as usize];
-                            let d2 = (0..3).map(|a| (x[a] - p[a]).powi(2)).sum::<f64>();
+                            let d2 = glam::DVec3::from(nodes[n as usize])
+                                .distance_squared(glam::DVec3::from(p));
                             let better = match best {
                                 None => true,
                                 Some((bd, bn)) => d2 < bd || (d2 == bd && (n as usize) < bn),

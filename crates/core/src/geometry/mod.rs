@@ -17,6 +17,7 @@ pub mod triangle_bins;
 
 use crate::error::SceneError;
 use crate::scene::{Geometry, Scene, SurfaceNodes};
+use glam::{DMat3, DVec3};
 pub use memory::{check_memory, MemoryEstimate, MeshEstimate};
 
 /// The largest lattice a surface may be sampled on (the box limit of 50 million nodes).
@@ -196,13 +197,15 @@ fn build_with(
                 "use a coarser spacing",
             )?;
             // A rotation keeps the orientation and the volume of the surface.
-            let m = g.rotate.map(|r| r.matrix());
+            let m = g
+                .rotate
+                .map(|r| DMat3::from_cols_array_2d(&r.matrix()).transpose());
             for v in &mut surface.vertices {
                 let r = match m {
-                    Some(m) => std::array::from_fn(|i| (0..3).map(|j| m[i][j] * v[j]).sum()),
-                    None => *v,
+                    Some(m) => m * DVec3::from(*v),
+                    None => DVec3::from(*v),
                 };
-                *v = std::array::from_fn(|i| r[i] + g.translate[i]);
+                *v = (r + DVec3::from(g.translate)).into();
             }
             let (lo, hi) = bounds(&surface.vertices);
             check_f32_resolution(
@@ -313,9 +316,8 @@ fn surface_area(surface: &obj::Surface) -> f64 {
         .iter()
         .map(|t| {
             let [a, b, c] = t.map(|i| surface.vertices[i as usize]);
-            let e1 = sampling::sub(b, a);
-            let e2 = sampling::sub(c, a);
-            0.5 * sampling::len(sampling::cross(e1, e2))
+            let [a, b, c] = [a, b, c].map(DVec3::from);
+            0.5 * (b - a).cross(c - a).length()
         })
         .sum()
 }
@@ -377,19 +379,11 @@ fn check_f32_resolution(
 pub fn vertex_area_vectors(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f64; 3]> {
     let mut out = vec![[0.0; 3]; positions.len()];
     for t in triangles {
-        let [a, b, c] = t.map(|v| positions[v as usize]);
-        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let [a, b, c] = t.map(|v| DVec3::from(positions[v as usize]));
         // cross / 2 is the area vector of the triangle; a third goes to each corner.
-        let n = [
-            (e1[1] * e2[2] - e1[2] * e2[1]) / 6.0,
-            (e1[2] * e2[0] - e1[0] * e2[2]) / 6.0,
-            (e1[0] * e2[1] - e1[1] * e2[0]) / 6.0,
-        ];
+        let n = (b - a).cross(c - a) / 6.0;
         for v in t {
-            for a in 0..3 {
-                out[*v as usize][a] += n[a];
-            }
+            out[*v as usize] = (DVec3::from(out[*v as usize]) + n).into();
         }
     }
     out
@@ -401,12 +395,8 @@ pub fn signed_volume(vertices: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {
     triangles
         .iter()
         .map(|t| {
-            let a = vertices[t[0] as usize];
-            let b = vertices[t[1] as usize];
-            let c = vertices[t[2] as usize];
-            (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0]))
-                / 6.0
+            let [a, b, c] = t.map(|v| DVec3::from(vertices[v as usize]));
+            a.dot(b.cross(c)) / 6.0
         })
         .sum()
 }

@@ -9,6 +9,7 @@
 //! [`GeometryError`] that names the file and the offending triangle or edge.
 
 use crate::error::{GeometryError, SceneError};
+use glam::DVec3;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -248,17 +249,10 @@ pub fn from_triangles(
         out_triangles.push(nt);
     }
     let (lo, hi) = super::bounds(&out_vertices);
-    let diag2: f64 = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum();
+    let diag2 = (DVec3::from(hi) - DVec3::from(lo)).length_squared();
     for (ti, t) in out_triangles.iter().enumerate() {
-        let [a, b, c] = t.map(|i| out_vertices[i as usize]);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [
-            u[1] * v[2] - u[2] * v[1],
-            u[2] * v[0] - u[0] * v[2],
-            u[0] * v[1] - u[1] * v[0],
-        ];
-        let area2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        let [a, b, c] = t.map(|i| DVec3::from(out_vertices[i as usize]));
+        let area2 = (b - a).cross(c - a).length_squared();
         if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || area2 <= 1e-24 * diag2 * diag2 {
             return Err(GeometryError::DegenerateTriangle {
                 path: path.to_path_buf(),

@@ -24,6 +24,7 @@ use super::ray_columns::ColumnCrossings;
 use super::triangle_bins::TriangleBins;
 use super::NodeCloud;
 use crate::error::GeometryError;
+use glam::DVec3;
 use std::path::Path;
 
 /// The resampled surface and interior nodes of `surface` at spacing `h`. `path` names the
@@ -127,9 +128,9 @@ pub fn resample(surface: &Surface, h: f64, path: &Path) -> Result<NodeCloud, Geo
                     if !here {
                         quad.reverse();
                     }
-                    let x = |v: u32| positions[v as usize];
-                    let d02 = dist2(x(quad[0]), x(quad[2]));
-                    let d13 = dist2(x(quad[1]), x(quad[3]));
+                    let x = |v: u32| DVec3::from(positions[v as usize]);
+                    let d02 = x(quad[0]).distance_squared(x(quad[2]));
+                    let d13 = x(quad[1]).distance_squared(x(quad[3]));
                     if d02 <= d13 {
                         triangles.push([quad[0], quad[1], quad[2]]);
                         triangles.push([quad[0], quad[2], quad[3]]);
@@ -256,10 +257,6 @@ fn regularise(inside: &[bool], dims: [usize; 3]) -> Vec<bool> {
             return topo;
         }
     }
-}
-
-fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
-    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum()
 }
 
 #[cfg(test)]

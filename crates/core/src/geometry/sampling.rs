@@ -10,6 +10,7 @@ use super::obj::Surface;
 use super::ray_columns::ColumnCrossings;
 use super::triangle_bins::TriangleBins;
 use super::NodeCloud;
+use glam::DVec3;
 
 /// A cubic lattice of spacing `h` over a point set's bounds, centred on them.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -90,14 +91,15 @@ pub fn fill_lattice(surface: &Surface, h: f64) -> NodeCloud {
 /// Generalised winding number of `p` with respect to a closed triangle surface: 1 inside,
 /// 0 outside.
 pub fn winding_number(p: [f64; 3], triangles: &[[[f64; 3]; 3]]) -> f64 {
+    let p = DVec3::from(p);
     let mut total = 0.0;
     for t in triangles {
-        let a = sub(t[0], p);
-        let b = sub(t[1], p);
-        let c = sub(t[2], p);
-        let (la, lb, lc) = (len(a), len(b), len(c));
-        let num = dot(a, cross(b, c));
-        let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+        let a = DVec3::from(t[0]) - p;
+        let b = DVec3::from(t[1]) - p;
+        let c = DVec3::from(t[2]) - p;
+        let (la, lb, lc) = (a.length(), b.length(), c.length());
+        let num = a.dot(b.cross(c));
+        let den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
         total += 2.0 * num.atan2(den);
     }
     total / (4.0 * std::f64::consts::PI)
@@ -107,75 +109,53 @@ pub fn winding_number(p: [f64; 3], triangles: &[[[f64; 3]; 3]]) -> f64 {
 pub fn distance_to_triangles(p: [f64; 3], triangles: &[[[f64; 3]; 3]]) -> f64 {
     triangles
         .iter()
-        .map(|t| len(sub(p, closest_point_on_triangle(p, t))))
+        .map(|t| DVec3::from(p).distance(closest_point_on_triangle(p, t).into()))
         .fold(f64::INFINITY, f64::min)
 }
 
 /// Closest point of triangle `t` to `p` (Voronoi regions of vertices, edges and face).
 pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
-    let [a, b, c] = *t;
-    let ab = sub(b, a);
-    let ac = sub(c, a);
-    let ap = sub(p, a);
-    let d1 = dot(ab, ap);
-    let d2 = dot(ac, ap);
+    let p = DVec3::from(p);
+    let [a, b, c] = t.map(DVec3::from);
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
     if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
+        return a.into();
     }
-    let bp = sub(p, b);
-    let d3 = dot(ab, bp);
-    let d4 = dot(ac, bp);
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
     if d3 >= 0.0 && d4 <= d3 {
-        return b;
+        return b.into();
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
         let v = d1 / (d1 - d3);
-        return add(a, scale(ab, v));
+        return (a + ab * v).into();
     }
-    let cp = sub(p, c);
-    let d5 = dot(ab, cp);
-    let d6 = dot(ac, cp);
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
     if d6 >= 0.0 && d5 <= d6 {
-        return c;
+        return c.into();
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
         let w = d2 / (d2 - d6);
-        return add(a, scale(ac, w));
+        return (a + ac * w).into();
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return add(b, scale(sub(c, b), w));
+        return (b + (c - b) * w).into();
     }
     let denom = 1.0 / (va + vb + vc);
     let v = vb * denom;
     let w = vc * denom;
-    add(a, add(scale(ab, v), scale(ac, w)))
-}
-
-pub(super) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-pub(super) fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-pub(super) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-pub(super) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub(super) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-pub(super) fn len(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
+    (a + (ab * v + ac * w)).into()
 }
 
 #[cfg(test)]

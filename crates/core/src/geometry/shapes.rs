@@ -3,6 +3,7 @@
 //! cylinder with flat ends.
 
 use super::obj::Surface;
+use glam::DVec3;
 
 /// A sphere of `radius` about `centre`: an icosahedron whose triangles are split in four
 /// `subdivisions` times, every new vertex pushed onto the sphere (`20 * 4^s` triangles).
@@ -45,8 +46,8 @@ pub fn icosphere(centre: [f64; 3], radius: f64, subdivisions: u32) -> Surface {
         [9, 8, 1],
     ];
     let unit = |p: [f64; 3]| {
-        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        p.map(|c| c / l)
+        let p = DVec3::from(p);
+        (p / p.length()).into()
     };
     v.iter_mut().for_each(|p| *p = unit(*p));
     for _ in 0..subdivisions {

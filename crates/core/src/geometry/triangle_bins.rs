@@ -4,7 +4,8 @@
 //! shells of cubes around the point's cube outwards and stops once no unsearched cube can
 //! hold a closer triangle, so a point near the surface costs the few triangles around it.
 
-use super::sampling::{closest_point_on_triangle, cross, dot, len, sub};
+use super::sampling::closest_point_on_triangle;
+use glam::DVec3;
 
 /// Triangles binned in cubes of side `cell`.
 #[derive(Debug, Clone)]
@@ -89,7 +90,7 @@ impl TriangleBins {
                         }
                         for &t in &self.bins[self.flat(q)] {
                             let x = closest_point_on_triangle(p, &self.triangles[t as usize]);
-                            let d = dist(x, p);
+                            let d = DVec3::from(x).distance(DVec3::from(p));
                             if best.is_none_or(|b| d < b.1) {
                                 best = Some((x, d));
                             }
@@ -140,31 +141,29 @@ impl TriangleBins {
 /// Fraction `s` in [0, 1] at which `a + s (b - a)` meets triangle `t`, if it does
 /// (Moeller and Trumbore 1997).
 fn segment_triangle(a: [f64; 3], b: [f64; 3], t: &[[f64; 3]; 3]) -> Option<f64> {
-    let d = sub(b, a);
-    let e1 = sub(t[1], t[0]);
-    let e2 = sub(t[2], t[0]);
-    let p = cross(d, e2);
-    let det = dot(e1, p);
+    let (a, b) = (DVec3::from(a), DVec3::from(b));
+    let [t0, t1, t2] = t.map(DVec3::from);
+    let d = b - a;
+    let e1 = t1 - t0;
+    let e2 = t2 - t0;
+    let p = d.cross(e2);
+    let det = e1.dot(p);
     if det == 0.0 {
         return None;
     }
     let inv = 1.0 / det;
-    let s0 = sub(a, t[0]);
-    let u = dot(s0, p) * inv;
+    let s0 = a - t0;
+    let u = s0.dot(p) * inv;
     if !(0.0..=1.0).contains(&u) {
         return None;
     }
-    let q = cross(s0, e1);
-    let v = dot(d, q) * inv;
+    let q = s0.cross(e1);
+    let v = d.dot(q) * inv;
     if v < 0.0 || u + v > 1.0 {
         return None;
     }
-    let s = dot(e2, q) * inv;
+    let s = e2.dot(q) * inv;
     (0.0..=1.0).contains(&s).then_some(s)
-}
-
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    len(sub(a, b))
 }
 
 #[cfg(test)]

@@ -40,8 +40,9 @@
 //! `corotated` the shape vectors and warm-start rotations of shape matching.
 
 use super::mls::pack_first_pass;
-use crate::math::{Mat3, Vec4};
+use crate::math::Vec4;
 use crate::neighbours::Neighbours;
+use glam::{Mat3, Vec3};
 
 /// Linear stress `sigma = lambda tr(eps) I + 2 mu eps` of `eps = sym(H)`, where `H` is the
 /// (rotated back) displacement gradient. Taking H rather than `F = I + H` avoids the
@@ -49,17 +50,13 @@ use crate::neighbours::Neighbours;
 /// multiply-adds (it made the GPU and CPU results drift apart).
 #[inline(always)]
 pub fn linear_stress(h: &Mat3, lambda: f32, mu: f32) -> Mat3 {
-    let tr = h[0][0] + h[1][1] + h[2][2];
-    std::array::from_fn(|r| {
-        std::array::from_fn(|c| {
-            let eps = 0.5 * (h[r][c] + h[c][r]);
-            2.0 * mu * eps + if r == c { lambda * tr } else { 0.0 }
-        })
-    })
+    let tr = h.x_axis.x + h.y_axis.y + h.z_axis.z;
+    let eps = (*h + h.transpose()) * 0.5;
+    eps * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * tr))
 }
 
 /// First pass of node i (see [`super::mls`]): `P_i = sigma_i`, or `R_i sigma(R_i^T F_i)`
-/// when `rotation` is given (row-major `R_i`). `hourglass` is alpha times mu in Pa.
+/// when `rotation` is given. `hourglass` is alpha times mu in Pa.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn first_pass(
@@ -79,14 +76,9 @@ pub fn first_pass(
         None => linear_stress(&j, lambda, mu),
         Some(r) => {
             // R^T F - I, the diagonal subtraction exact (Sterbenz) for entries in [0.5, 2].
-            let rt: Mat3 = std::array::from_fn(|a| std::array::from_fn(|b| r[b][a]));
             let f = super::point_based::deformation_gradient(&j);
-            let mut h = super::mls::mat_mul(&rt, &f);
-            for a in 0..3 {
-                h[a][a] -= 1.0;
-            }
-            let s = linear_stress(&h, lambda, mu);
-            super::mls::mat_mul(r, &s)
+            let h = r.transpose() * f - Mat3::IDENTITY;
+            *r * linear_stress(&h, lambda, mu)
         }
     };
     pack_first_pass(&p, &j, trace, inverse_moment, volume, hourglass)

@@ -32,31 +32,27 @@
 //! The paper's Table 1 lists only v; A cannot be formed without the rest positions.
 
 use super::mueller2016_rotation::extract_rotation;
-use crate::math::{cross, sub, Mat3, Vec4};
+use crate::math::{with_w, xyz, Vec4};
 use crate::neighbours::Neighbours;
+use glam::{Mat3, Quat, Vec3};
 
 /// Weighted mean of the neighbour offsets `d_j = p_j - p_i` over node i's cluster (the
 /// node itself has offset 0 and weight 1).
 #[inline(always)]
-pub fn centre_offset(i: usize, p: &[Vec4], nb: &Neighbours) -> Vec4 {
-    let xi = p[i];
-    let mut c = [0.0f32; 4];
+pub fn centre_offset(i: usize, p: &[Vec4], nb: &Neighbours) -> Vec3 {
+    let xi = xyz(p[i]);
+    let mut c = Vec3::ZERO;
     let mut wsum = 1.0f32;
     for (_, j, w) in nb.live(i) {
-        let d = sub(p[j], xi);
-        c[0] += w * d[0];
-        c[1] += w * d[1];
-        c[2] += w * d[2];
+        c += w * (xyz(p[j]) - xi);
         wsum += w;
     }
-    let inv = 1.0 / wsum;
-    [c[0] * inv, c[1] * inv, c[2] * inv, 0.0]
+    c * (1.0 / wsum)
 }
 
-/// Shape vector `v_i = -centre_offset(x0)` of node i.
+/// Shape vector `v_i = -centre_offset(x0)` of node i (stored, w = 0).
 pub fn shape_vector(i: usize, rest: &[Vec4], nb: &Neighbours) -> Vec4 {
-    let c = centre_offset(i, rest, nb);
-    [-c[0], -c[1], -c[2], 0.0]
+    with_w(-centre_offset(i, rest, nb), 0.0)
 }
 
 /// Centre offset `c_i` and rotation `R_i` (as a quaternion, refined from the warm start
@@ -69,45 +65,45 @@ pub fn cluster_frame(
     shape_vector: Vec4,
     nb: &Neighbours,
     iterations: u32,
-    rotation: Vec4,
-) -> (Vec4, Vec4) {
+    rotation: Quat,
+) -> (Vec3, Quat) {
     // One pass over the cluster: with offsets d_j = x_j - x_i and d0_j = x0_j - x0_i
     // (the node itself has d = d0 = 0, weight 1),
     // A = sum w (d - c)(d0 - c0)^T = sum w d d0^T - c (sum w d0)^T.
-    let xi = positions[i];
-    let x0i = rest[i];
+    let xi = xyz(positions[i]);
+    let x0i = xyz(rest[i]);
     let mut wsum = 1.0f32;
-    let mut sd = [0.0f32; 3];
-    let mut sd0 = [0.0f32; 3];
+    let mut sd = Vec3::ZERO;
+    let mut sd0 = Vec3::ZERO;
     let mut sdd0 = 0.0f32;
-    let mut m: Mat3 = [[0.0; 3]; 3];
+    let mut m = Mat3::ZERO;
     for (_, j, w) in nb.live(i) {
-        let d = sub(positions[j], xi);
-        let d0 = sub(rest[j], x0i);
-        let wd0 = [w * d0[0], w * d0[1], w * d0[2]];
-        for r in 0..3 {
-            sd[r] += w * d[r];
-            sd0[r] += wd0[r];
-            for t in 0..3 {
-                m[r][t] += d[r] * wd0[t];
-            }
-        }
-        sdd0 += wd0[0] * d0[0] + wd0[1] * d0[1] + wd0[2] * d0[2];
+        let d = xyz(positions[j]) - xi;
+        let d0 = xyz(rest[j]) - x0i;
+        let wd0 = w * d0;
+        sd += w * d;
+        sd0 += wd0;
+        m += outer(d, wd0);
+        sdd0 += wd0.dot(d0);
         wsum += w;
     }
-    let inv_w = 1.0 / wsum;
-    let c = [sd[0] * inv_w, sd[1] * inv_w, sd[2] * inv_w, 0.0];
-    let c0 = [-shape_vector[0], -shape_vector[1], -shape_vector[2]];
+    let c = sd * (1.0 / wsum);
+    let c0 = -xyz(shape_vector);
     // sum w |d0 - c0|^2 = sum w |d0|^2 - 2 c0 . sum w d0 + W |c0|^2
-    let scale = sdd0 - 2.0 * (c0[0] * sd0[0] + c0[1] * sd0[1] + c0[2] * sd0[2])
-        + wsum * (c0[0] * c0[0] + c0[1] * c0[1] + c0[2] * c0[2]);
+    let scale = sdd0 - 2.0 * c0.dot(sd0) + wsum * c0.dot(c0);
     let inv = if scale > 0.0 { 1.0 / scale } else { 1.0 };
-    let a: Mat3 = std::array::from_fn(|r| std::array::from_fn(|t| (m[r][t] - c[r] * sd0[t]) * inv));
+    let a = (m - outer(c, sd0)) * inv;
     (c, extract_rotation(&a, rotation, iterations))
 }
 
+/// The outer product `u v^T`.
+#[inline(always)]
+fn outer(u: Vec3, v: Vec3) -> Mat3 {
+    Mat3::from_cols(u * v.x, u * v.y, u * v.z)
+}
+
 /// The paper's force on node i (equation 1): `k_s (g_i - x_i) = k_s (c_i + R_i v_i)`.
-/// Updates the node's warm-start quaternion `rotation`.
+/// Updates the node's stored warm-start quaternion `rotation`.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn node_force(
@@ -120,15 +116,17 @@ pub fn node_force(
     iterations: u32,
     rotation: &mut Vec4,
 ) -> Vec4 {
-    let (c, q) = cluster_frame(i, positions, rest, shape_vector, nb, iterations, *rotation);
-    *rotation = q;
-    let rv = quat_rotate(q, shape_vector);
-    [
-        stiffness * (c[0] + rv[0]),
-        stiffness * (c[1] + rv[1]),
-        stiffness * (c[2] + rv[2]),
-        0.0,
-    ]
+    let (c, q) = cluster_frame(
+        i,
+        positions,
+        rest,
+        shape_vector,
+        nb,
+        iterations,
+        Quat::from_array(*rotation),
+    );
+    *rotation = q.to_array();
+    with_w(stiffness * (c + quat_rotate(q, xyz(shape_vector))), 0.0)
 }
 
 /// Cluster forces on node j (second pass of the `cluster` variant): every cluster i that
@@ -137,7 +135,7 @@ pub fn node_force(
 /// gradients of the shape matching energy `k_s/2 sum_i sum_j w_ij |g_ij - x_j|^2` (R_i
 /// and C_i are its minimisers, so their derivatives drop out): conservative and
 /// momentum-conserving. `centre` and `rotation` hold every node's `c_i` and `R_i` from
-/// [`cluster_frame`].
+/// [`cluster_frame`], stored.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn cluster_force(
@@ -150,36 +148,26 @@ pub fn cluster_force(
     centre: &[Vec4],
     rotation: &[Vec4],
 ) -> Vec4 {
-    let xj = positions[j];
-    let x0j = rest[j];
-    let own = quat_rotate(rotation[j], shape_vectors[j]);
-    let cj = centre[j];
-    let mut f = [cj[0] + own[0], cj[1] + own[1], cj[2] + own[2], 0.0];
+    let xj = xyz(positions[j]);
+    let x0j = xyz(rest[j]);
+    let own = quat_rotate(Quat::from_array(rotation[j]), xyz(shape_vectors[j]));
+    let mut f = xyz(centre[j]) + own;
     for (_, i, w) in nb.live(j) {
         // g_ij - x_j = (x_i - x_j) + c_i + R_i ((x0_j - x0_i) + v_i)
-        let d = sub(positions[i], xj);
-        let q0 = sub(x0j, rest[i]);
-        let v = shape_vectors[i];
-        let r = quat_rotate(rotation[i], [q0[0] + v[0], q0[1] + v[1], q0[2] + v[2], 0.0]);
-        let ci = centre[i];
-        f[0] += w * (d[0] + ci[0] + r[0]);
-        f[1] += w * (d[1] + ci[1] + r[1]);
-        f[2] += w * (d[2] + ci[2] + r[2]);
+        let d = xyz(positions[i]) - xj;
+        let q0 = x0j - xyz(rest[i]);
+        let r = quat_rotate(Quat::from_array(rotation[i]), q0 + xyz(shape_vectors[i]));
+        f += w * (d + xyz(centre[i]) + r);
     }
-    [stiffness * f[0], stiffness * f[1], stiffness * f[2], 0.0]
+    with_w(stiffness * f, 0.0)
 }
 
-/// Rotates v by the unit quaternion q (`[x, y, z, w]`): `v + 2 w (u x v) + 2 u x (u x v)`.
+/// Rotates v by the unit quaternion q: `v + 2 w (u x v) + 2 u x (u x v)`, `u` the vector
+/// part. This is the WGSL kernels' `quat_rotate`, kept instead of glam's `Quat * Vec3`
+/// (another formula, vectorised) so that the CPU reference rounds like the GPU kernels.
 #[inline(always)]
-pub fn quat_rotate(q: Vec4, v: Vec4) -> Vec4 {
-    let u = [q[0], q[1], q[2], 0.0];
-    let t = cross(u, v);
-    let t = [2.0 * t[0], 2.0 * t[1], 2.0 * t[2], 0.0];
-    let ut = cross(u, t);
-    [
-        v[0] + q[3] * t[0] + ut[0],
-        v[1] + q[3] * t[1] + ut[1],
-        v[2] + q[3] * t[2] + ut[2],
-        0.0,
-    ]
+pub fn quat_rotate(q: Quat, v: Vec3) -> Vec3 {
+    let u = q.xyz();
+    let t = 2.0 * u.cross(v);
+    v + q.w * t + u.cross(t)
 }

@@ -19,8 +19,9 @@
 //!
 //! Shape information: `rest_length`, one `f32` per slot.
 
-use crate::math::{dot, norm, sub, Vec4};
+use crate::math::{with_w, xyz, Vec4};
 use crate::neighbours::Neighbours;
+use glam::Vec3;
 
 /// Multiplies the weight of every spring of the first `n` nodes by its share of the body,
 /// `max(V_i, V_j) / spacing^3` ([`crate::scene::SpringShare::Cell`]). Both slots of a
@@ -52,7 +53,7 @@ pub fn rest_lengths(rest: &[Vec4], nb: &Neighbours, n: usize) -> Vec<f32> {
 pub fn rest_length_row(i: usize, rest: &[Vec4], nb: &Neighbours) -> Vec<f32> {
     let mut row = vec![0.0f32; nb.k];
     for (slot, j, _) in nb.live(i) {
-        row[slot - i * nb.k] = norm(sub(rest[j], rest[i]));
+        row[slot - i * nb.k] = (xyz(rest[j]) - xyz(rest[i])).length();
     }
     row
 }
@@ -68,21 +69,19 @@ pub fn force(
     stiffness: f32,
     damping: f32,
 ) -> Vec4 {
-    let xi = positions[i];
-    let vi = velocities[i];
-    let mut f = [0.0f32; 4];
+    let xi = xyz(positions[i]);
+    let vi = xyz(velocities[i]);
+    let mut f = Vec3::ZERO;
     for (slot, j, w) in nb.live(i) {
-        let d = sub(positions[j], xi);
-        let len = norm(d);
+        let d = xyz(positions[j]) - xi;
+        let len = d.length();
         if len <= 0.0 {
             continue;
         }
         let inv = 1.0 / len;
-        let dv = sub(velocities[j], vi);
-        let mag = w * (stiffness * (len - rest_length[slot]) + damping * dot(dv, d) * inv) * inv;
-        f[0] += mag * d[0];
-        f[1] += mag * d[1];
-        f[2] += mag * d[2];
+        let dv = xyz(velocities[j]) - vi;
+        let mag = w * (stiffness * (len - rest_length[slot]) + damping * dv.dot(d) * inv) * inv;
+        f += mag * d;
     }
-    f
+    with_w(f, 0.0)
 }

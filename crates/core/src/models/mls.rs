@@ -24,12 +24,14 @@
 //! momentum is conserved and the rest state gives exactly zero force.
 //!
 //! Ill-conditioned moment matrices (flat or collinear neighbourhoods) are inverted by a
-//! truncated eigen-decomposition ([`crate::math::sym_pseudo_inverse`], relative threshold
-//! [`MOMENT_TOLERANCE`]): the gradient along a direction the neighbourhood does not span
+//! truncated eigen-decomposition ([`sym_pseudo_inverse`], nalgebra's `SymmetricEigen`,
+//! relative threshold [`MOMENT_TOLERANCE`]): the gradient along a direction the neighbourhood does not span
 //! is taken as zero instead of being amplified by a near-zero eigenvalue.
 
-use crate::math::{sub, sym_pseudo_inverse, Mat3, Vec4};
+use crate::math::{with_w, xyz, Vec4};
 use crate::neighbours::Neighbours;
+use glam::{Mat3, Vec3};
+use nalgebra::{Matrix3, SymmetricEigen};
 
 /// Material constants of the two continuum models, in Pa, as the kernels use them.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,20 +130,38 @@ pub fn added_node_volume(
 /// most 1000).
 pub const MOMENT_TOLERANCE: f64 = 1e-3;
 
+/// Truncated pseudo-inverse of a symmetric positive semi-definite 3x3 matrix:
+/// eigen-directions whose eigenvalue is not above `rel_tol` times the largest are dropped
+/// (their inverse is taken as 0), so a flat or collinear point set gives a bounded inverse
+/// instead of a huge one. Returns the inverse and the number of directions kept (0 and a
+/// zero matrix when the largest eigenvalue is not positive or is NaN).
+pub fn sym_pseudo_inverse(a: &Matrix3<f64>, rel_tol: f64) -> (Matrix3<f64>, usize) {
+    let eigen = SymmetricEigen::new(*a);
+    let max = eigen.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let mut out = Matrix3::zeros();
+    let mut rank = 0;
+    for (e, &value) in eigen.eigenvalues.iter().enumerate() {
+        if max.is_nan() || max <= 0.0 || value <= rel_tol * max {
+            continue;
+        }
+        rank += 1;
+        let v = eigen.eigenvectors.column(e);
+        out += v * v.transpose() * (1.0 / value);
+    }
+    (out, rank)
+}
+
 /// Inverse moment matrix `A_i^-1` of node i (row-major), truncated as described above.
 pub fn inverse_moment(i: usize, rest: &[Vec4], nb: &Neighbours) -> [f32; 9] {
-    let mut a = [0.0f64; 9];
+    let x0i = xyz(rest[i]);
+    let mut a = Matrix3::<f64>::zeros();
     for (_, j, w) in nb.live(i) {
-        let w = w as f64;
-        let d = sub(rest[j], rest[i]);
-        for r in 0..3 {
-            for c in 0..3 {
-                a[r * 3 + c] += w * d[r] as f64 * d[c] as f64;
-            }
-        }
+        let d = (xyz(rest[j]) - x0i).as_dvec3();
+        let wd = w as f64 * d;
+        a += Matrix3::from_fn(|r, c| wd[r] * d[c]);
     }
-    let (inv, _) = sym_pseudo_inverse(3, &a, MOMENT_TOLERANCE);
-    std::array::from_fn(|e| inv[e] as f32)
+    let (inv, _) = sym_pseudo_inverse(&a, MOMENT_TOLERANCE);
+    std::array::from_fn(|e| inv[(e / 3, e % 3)] as f32)
 }
 
 /// Inverse moment matrices of the first `n` nodes; the rest of `capacity` are zero.
@@ -153,16 +173,15 @@ pub fn inverse_moments(rest: &[Vec4], nb: &Neighbours, n: usize) -> Vec<[f32; 9]
     out
 }
 
-/// `a b` for 3x3 matrices.
+/// A stored row-major 9-float matrix (`inverse_moment`, the first-pass result) as a
+/// matrix.
 #[inline(always)]
-pub fn mat_mul(a: &Mat3, b: &Mat3) -> Mat3 {
-    std::array::from_fn(|r| std::array::from_fn(|c| (0..3).map(|t| a[r][t] * b[t][c]).sum()))
-}
-
-/// A row-major 9-float matrix as rows.
-#[inline(always)]
-pub fn unpack(m: &[f32; 9]) -> Mat3 {
-    [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]]
+pub fn unpack<const N: usize>(m: &[f32; N]) -> Mat3 {
+    Mat3::from_cols(
+        Vec3::new(m[0], m[3], m[6]),
+        Vec3::new(m[1], m[4], m[7]),
+        Vec3::new(m[2], m[5], m[8]),
+    )
 }
 
 /// Displacement gradient `J_i` at node i and `sum_j w_ij |x_ij|^2` (for hourglass
@@ -175,21 +194,18 @@ pub fn displacement_gradient(
     nb: &Neighbours,
     inverse_moment: &[f32; 9],
 ) -> (Mat3, f32) {
-    let (xi, x0i) = (positions[i], rest[i]);
-    let mut b: Mat3 = [[0.0; 3]; 3];
+    let (xi, x0i) = (xyz(positions[i]), xyz(rest[i]));
+    let mut b = Mat3::ZERO;
     let mut trace = 0.0f32;
     for (_, j, w) in nb.live(i) {
-        let d = sub(positions[j], xi);
-        let d0 = sub(rest[j], x0i);
-        for r in 0..3 {
-            let du = w * (d[r] - d0[r]);
-            for c in 0..3 {
-                b[r][c] += du * d0[c];
-            }
-        }
-        trace += w * (d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+        let d = xyz(positions[j]) - xi;
+        let d0 = xyz(rest[j]) - x0i;
+        // b += du d0^T with du = w (d - d0)
+        let du = w * (d - d0);
+        b += Mat3::from_cols(du * d0.x, du * d0.y, du * d0.z);
+        trace += w * d0.dot(d0);
     }
-    (mat_mul(&b, &unpack(inverse_moment)), trace)
+    (b * unpack(inverse_moment), trace)
 }
 
 /// First-pass result of node i from its stress `P_i`: `[V_i P_i A_i^-1 - c_i J_i (9
@@ -204,16 +220,15 @@ pub fn pack_first_pass(
     volume: f32,
     hourglass: f32,
 ) -> [f32; 12] {
-    let q = mat_mul(p, &unpack(inverse_moment));
+    let q = *p * unpack(inverse_moment);
     let c = if trace > 0.0 {
         hourglass * volume / trace
     } else {
         0.0
     };
+    let m = (volume * q - c * *j).transpose().to_cols_array();
     let mut out = [0.0f32; 12];
-    for e in 0..9 {
-        out[e] = volume * q[e / 3][e % 3] - c * j[e / 3][e % 3];
-    }
+    out[..9].copy_from_slice(&m);
     out[9] = c;
     out
 }
@@ -228,25 +243,19 @@ pub fn gather_force(
     nb: &Neighbours,
     first: &[[f32; 12]],
 ) -> Vec4 {
-    let (xk, x0k) = (positions[k_node], rest[k_node]);
+    let (xk, x0k) = (xyz(positions[k_node]), xyz(rest[k_node]));
     let own = &first[k_node];
-    let mut f = [0.0f32; 3];
-    let mut m = [0.0f32; 3];
+    let mut f = Vec3::ZERO;
+    let mut m = Vec3::ZERO;
     for (_, i, w) in nb.live(k_node) {
-        let d0 = sub(rest[i], x0k);
-        let d = sub(positions[i], xk);
+        let d0 = xyz(rest[i]) - x0k;
+        let d = xyz(positions[i]) - xk;
         let qi = &first[i];
         let c = w * (qi[9] + own[9]);
-        for r in 0..3 {
-            f[r] += w * (qi[r * 3] * d0[0] + qi[r * 3 + 1] * d0[1] + qi[r * 3 + 2] * d0[2])
-                + c * (d[r] - d0[r]);
-            m[r] += w * d0[r];
-        }
+        f += w * (unpack(qi) * d0) + c * (d - d0);
+        m += w * d0;
     }
-    for r in 0..3 {
-        f[r] += own[r * 3] * m[0] + own[r * 3 + 1] * m[1] + own[r * 3 + 2] * m[2];
-    }
-    [f[0], f[1], f[2], 0.0]
+    with_w(f + unpack(own) * m, 0.0)
 }
 
 #[cfg(test)]
@@ -298,11 +307,28 @@ mod tests {
                 })
                 .collect();
             let (j, _) = displacement_gradient(0, &x, &rest, &nb, &a);
-            for r in 0..3 {
-                for c in 0..3 {
-                    assert!(j[r][c].is_finite() && j[r][c].abs() < 1.0, "{j:?}");
-                }
+            for e in j.to_cols_array() {
+                assert!(e.is_finite() && e.abs() < 1.0, "{j:?}");
             }
         }
+    }
+
+    #[test]
+    fn pseudo_inverse_inverts_full_rank_and_drops_flat_directions() {
+        let a = Matrix3::new(4.0, 1.0, 0.0, 1.0, 3.0, 0.5, 0.0, 0.5, 2.0);
+        let (inv, rank) = sym_pseudo_inverse(&a, 1e-9);
+        assert_eq!(rank, 3);
+        let p = a * inv;
+        for r in 0..3 {
+            for c in 0..3 {
+                let want = if r == c { 1.0 } else { 0.0 };
+                assert!((p[(r, c)] - want).abs() < 1e-12, "{r}{c}: {}", p[(r, c)]);
+            }
+        }
+        // A flat point set (all in z = 0) has no z information: the z row stays 0.
+        let flat = Matrix3::new(2.0, 0.5, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 1e-14);
+        let (inv, rank) = sym_pseudo_inverse(&flat, 1e-6);
+        assert_eq!(rank, 2);
+        assert!(inv[(2, 2)].abs() < 1e-12 && inv.iter().all(|x| x.is_finite()));
     }
 }
