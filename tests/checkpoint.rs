@@ -45,16 +45,16 @@ fn fingerprint(sim: &mut Simulation) -> (Vec<u32>, Vec<u32>, Vec<u8>, String) {
     let mut rows = nb.index.clone();
     rows.extend(nb.weight.iter().map(|w| w.to_bits()));
     let mut shape = Vec::new();
-    let arrays: Vec<(String, usize)> = sim
+    let arrays: Vec<_> = sim
         .editor()
         .shape()
         .bytes()
         .iter()
-        .map(|(n, b)| (n.to_string(), b.len()))
+        .map(|(n, b)| (*n, b.len()))
         .collect();
     for (name, len) in arrays {
         let mut out = vec![0u8; len];
-        sim.backend().read_shape_bytes(&name, 0, &mut out).unwrap();
+        sim.backend().read_shape_bytes(name, 0, &mut out).unwrap();
         shape.extend(out);
     }
     // Debug output of floats is their shortest exact form: equal text, equal bits.

@@ -5,6 +5,7 @@
 mod common;
 
 use common::*;
+use needlesim::core::models::ShapeArray;
 use needlesim::gpu::{GpuBackend, GpuError};
 use needlesim::{Backend, NodeField, Threading, Tissue};
 
@@ -166,7 +167,7 @@ fn shape_rows_written_on_either_backend_agree() {
         (
             "msm",
             MODELS[0].1,
-            "rest_length",
+            ShapeArray::RestLength,
             7 * k * 4,
             vec![0.02f32; k],
         ),
@@ -174,14 +175,14 @@ fn shape_rows_written_on_either_backend_agree() {
         (
             "pba",
             MODELS[4].1,
-            "rest_position",
+            ShapeArray::RestPosition,
             9 * 16,
             vec![0.01f32, 0.02, 0.03, 2e-6],
         ),
         (
             "pba",
             MODELS[4].1,
-            "inverse_moment",
+            ShapeArray::InverseMoment,
             9 * 36,
             vec![1e4f32; 9],
         ),
@@ -191,11 +192,12 @@ fn shape_rows_written_on_either_backend_agree() {
         let mut c = backend(&scene, Threading::Single);
         let data: &[u8] = bytemuck::cast_slice(&bytes);
         let bad = |b: &mut dyn Backend| {
-            for (name, off, len) in [
-                ("no_such_array", 0, 4),
-                (array, offset + 2, 4),
-                (array, 1 << 30, 4),
-            ] {
+            // An array the model does not have.
+            let absent = match array {
+                ShapeArray::RestLength => ShapeArray::Rotation,
+                _ => ShapeArray::RestLength,
+            };
+            for (name, off, len) in [(absent, 0, 4), (array, offset + 2, 4), (array, 1 << 30, 4)] {
                 let e = b.write_shape_bytes(name, off, &vec![0u8; len]).unwrap_err();
                 assert!(matches!(e, SimError::BadShapeWrite { .. }), "{label}: {e}");
             }

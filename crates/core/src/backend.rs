@@ -6,6 +6,7 @@
 
 use crate::error::SimError;
 use crate::math::Vec4;
+use crate::models::ShapeArray;
 use std::ops::Range;
 
 /// A per-node vector array of the backend.
@@ -83,12 +84,11 @@ pub trait Backend: Send {
     ) -> Result<(), SimError>;
 
     /// Overwrites `data.len()` bytes at byte `offset` of the model's shape information array
-    /// `array` (a name from `Tissue::allocations`, e.g. `rest_length` or `inverse_moment`;
-    /// the layout is that of `ShapeInfo::bytes`). The needle uses it to give a new node and
+    /// `array` (the layout is that of `ShapeInfo::bytes`). The needle uses it to give a new node and
     /// its neighbours their shape information, on any backend.
     fn write_shape_bytes(
         &mut self,
-        array: &str,
+        array: ShapeArray,
         offset: usize,
         data: &[u8],
     ) -> Result<(), SimError>;
@@ -97,7 +97,7 @@ pub trait Backend: Send {
     /// rotations, this way).
     fn read_shape_bytes(
         &mut self,
-        array: &str,
+        array: ShapeArray,
         offset: usize,
         out: &mut [u8],
     ) -> Result<(), SimError>;
@@ -208,14 +208,14 @@ pub fn check_rows(
 /// Checks a shape array write of `len` bytes at `offset` into an array of `size` bytes
 /// (`None`: the model has no such array). Offsets and lengths must be multiples of 4.
 pub fn check_shape_write(
-    array: &str,
+    array: ShapeArray,
     offset: usize,
     len: usize,
     size: Option<usize>,
 ) -> Result<(), SimError> {
     let err = |reason| {
         Err(SimError::BadShapeWrite {
-            array: array.to_string(),
+            array: array.name().to_string(),
             offset,
             len,
             reason,

@@ -7,7 +7,8 @@ use crate::error::SimError;
 use crate::integrator::integrate_node;
 use crate::math::{with_w, Vec4};
 use crate::models::{
-    debunne_meshfree, local_shape_matching, mass_spring, mls, point_based, Corotation, ShapeInfo,
+    debunne_meshfree, local_shape_matching, mass_spring, mls, point_based, Corotation, ShapeArray,
+    ShapeInfo,
 };
 use crate::scene::{
     DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
@@ -395,7 +396,7 @@ impl Backend for CpuBackend {
 
     fn write_shape_bytes(
         &mut self,
-        array: &str,
+        array: ShapeArray,
         offset: usize,
         data: &[u8],
     ) -> Result<(), SimError> {
@@ -415,7 +416,7 @@ impl Backend for CpuBackend {
 
     fn read_shape_bytes(
         &mut self,
-        array: &str,
+        array: ShapeArray,
         offset: usize,
         out: &mut [u8],
     ) -> Result<(), SimError> {

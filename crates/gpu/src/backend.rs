@@ -7,7 +7,7 @@ use crate::kernels::{self, Kernel, WORKGROUP};
 use bytemuck::{Pod, Zeroable};
 use needlesim_core::backend::{check_range, check_rows, check_shape_write};
 use needlesim_core::models::mls::ContinuumConstants;
-use needlesim_core::models::ShapeInfo;
+use needlesim_core::models::{ShapeArray, ShapeInfo};
 use needlesim_core::scene::{DebunneParams, MassSpringParams, Material, ShapeMatchingParams};
 use needlesim_core::{Backend, NodeField, SimError, Tissue, Vec4};
 use std::ops::Range;
@@ -45,19 +45,17 @@ pub struct Buffers {
     forces: wgpu::Buffer,
     nb_index: wgpu::Buffer,
     nb_weight: wgpu::Buffer,
-    /// The model's arrays by name (as in `Tissue::allocations`).
-    model: Vec<(&'static str, wgpu::Buffer)>,
+    /// The model's arrays (those of `ShapeInfo::bytes`).
+    model: Vec<(ShapeArray, wgpu::Buffer)>,
     readback: wgpu::Buffer,
 }
 
 impl Buffers {
-    fn model(&self, name: &str) -> &wgpu::Buffer {
-        &self
-            .model
-            .iter()
-            .find(|(n, _)| *n == name)
-            .unwrap_or_else(|| panic!("model buffer {name} not built"))
-            .1
+    /// The buffer of `array`. The force passes ask only for arrays their model's
+    /// `ShapeInfo` variant holds, which every buffer set is built from.
+    fn model(&self, array: ShapeArray) -> &wgpu::Buffer {
+        let found = self.model.iter().find(|(a, _)| *a == array);
+        &found.expect("the passes bind only their model's arrays").1
     }
 
     /// Bytes of every buffer, by name.
@@ -69,7 +67,7 @@ impl Buffers {
             ("neighbour_index", self.nb_index.size()),
             ("neighbour_weight", self.nb_weight.size()),
         ];
-        v.extend(self.model.iter().map(|(n, b)| (*n, b.size())));
+        v.extend(self.model.iter().map(|(a, b)| (a.name(), b.size())));
         v
     }
 }
@@ -156,11 +154,11 @@ impl GpuBackend {
             pad: [0.0; 4],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
-        let model: Vec<(&'static str, wgpu::Buffer)> = tissue
+        let model: Vec<(ShapeArray, wgpu::Buffer)> = tissue
             .shape
             .bytes()
             .into_iter()
-            .map(|(name, bytes)| (name, b(name, bytes)))
+            .map(|(array, bytes)| (array, b(array.name(), bytes)))
             .collect();
         match tissue.material {
             Material::MassSpring(MassSpringParams {
@@ -388,7 +386,7 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
                 (2, &b.velocities),
                 (3, &b.nb_index),
                 (4, &b.nb_weight),
-                (5, b.model("rest_length")),
+                (5, b.model(ShapeArray::RestLength)),
                 (6, &b.forces),
             ],
         )],
@@ -399,11 +397,11 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
                     &[
                         (0, &b.params),
                         (1, &b.positions),
-                        (2, b.model("rest_position")),
-                        (3, b.model("shape_vector")),
+                        (2, b.model(ShapeArray::RestPosition)),
+                        (3, b.model(ShapeArray::ShapeVector)),
                         (4, &b.nb_index),
                         (5, &b.nb_weight),
-                        (6, b.model("rotation")),
+                        (6, b.model(ShapeArray::Rotation)),
                         (7, out),
                     ],
                 )
@@ -413,19 +411,19 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
                 Some(_) => vec![
                     frame(
                         kernels::lshm_cluster_frame(device),
-                        b.model("cluster_centre"),
+                        b.model(ShapeArray::ClusterCentre),
                     ),
                     pass(
                         kernels::lshm_cluster_force(device),
                         &[
                             (0, &b.params),
                             (1, &b.positions),
-                            (2, b.model("rest_position")),
-                            (3, b.model("shape_vector")),
+                            (2, b.model(ShapeArray::RestPosition)),
+                            (3, b.model(ShapeArray::ShapeVector)),
                             (4, &b.nb_index),
                             (5, &b.nb_weight),
-                            (6, b.model("rotation")),
-                            (7, b.model("cluster_centre")),
+                            (6, b.model(ShapeArray::Rotation)),
+                            (7, b.model(ShapeArray::ClusterCentre)),
                             (8, &b.forces),
                         ],
                     ),
@@ -443,17 +441,17 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
             let mut entries = vec![
                 (0, &b.params),
                 (1, &b.positions),
-                (2, b.model("rest_position")),
+                (2, b.model(ShapeArray::RestPosition)),
                 (3, &b.nb_index),
                 (4, &b.nb_weight),
-                (5, b.model("inverse_moment")),
-                (6, b.model("first_pass")),
+                (5, b.model(ShapeArray::InverseMoment)),
+                (6, b.model(ShapeArray::FirstPass)),
             ];
             let entry = match shape {
                 ShapeInfo::PointBased { .. } => "pba",
                 _ if corotated => {
-                    entries.push((8, b.model("shape_vector")));
-                    entries.push((9, b.model("rotation")));
+                    entries.push((8, b.model(ShapeArray::ShapeVector)));
+                    entries.push((9, b.model(ShapeArray::Rotation)));
                     "deb_corotated"
                 }
                 _ => "deb_linear",
@@ -465,10 +463,10 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
                     &[
                         (0, &b.params),
                         (1, &b.positions),
-                        (2, b.model("rest_position")),
+                        (2, b.model(ShapeArray::RestPosition)),
                         (3, &b.nb_index),
                         (4, &b.nb_weight),
-                        (5, b.model("first_pass")),
+                        (5, b.model(ShapeArray::FirstPass)),
                         (6, &b.forces),
                     ],
                 ),
@@ -618,7 +616,7 @@ impl Backend for GpuBackend {
 
     fn write_shape_bytes(
         &mut self,
-        array: &str,
+        array: ShapeArray,
         offset: usize,
         data: &[u8],
     ) -> Result<(), SimError> {
@@ -640,7 +638,7 @@ impl Backend for GpuBackend {
     /// Reads in pieces of the readback buffer's size.
     fn read_shape_bytes(
         &mut self,
-        array: &str,
+        array: ShapeArray,
         offset: usize,
         out: &mut [u8],
     ) -> Result<(), SimError> {

@@ -29,7 +29,7 @@
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
 use needlesim_core::math::Vec4;
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
-use needlesim_core::models::ShapeInfo;
+use needlesim_core::models::{ShapeArray, ShapeInfo};
 use needlesim_core::neighbours::{kernel_length, kernel_weight, Neighbours};
 use needlesim_core::scene::WeightKernel;
 use needlesim_core::{Backend, NodeField, SimError, Tissue};
@@ -422,7 +422,7 @@ impl NodeEditor {
         if self.shape.has_rotation() {
             self.write_shape(
                 backend,
-                "rotation",
+                ShapeArray::Rotation,
                 i * 16,
                 bytemuck::bytes_of(&q),
                 &mut undo,
@@ -474,7 +474,7 @@ impl NodeEditor {
                     let mut arrays = self.shape.bytes_mut();
                     let (name, target) = &mut arrays[*array];
                     target[*offset..*offset + bytes.len()].copy_from_slice(bytes);
-                    backend.write_shape_bytes(name, *offset, bytes)?;
+                    backend.write_shape_bytes(*name, *offset, bytes)?;
                 }
                 Undo::Slot {
                     node,
@@ -506,7 +506,7 @@ impl NodeEditor {
         });
     }
 
-    fn shape_bytes(&mut self, array: &str) -> (usize, &mut [u8]) {
+    fn shape_bytes(&mut self, array: ShapeArray) -> (usize, &mut [u8]) {
         self.shape
             .bytes_mut()
             .into_iter()
@@ -519,7 +519,7 @@ impl NodeEditor {
     fn write_shape(
         &mut self,
         backend: &mut dyn Backend,
-        array: &'static str,
+        array: ShapeArray,
         offset: usize,
         bytes: &[u8],
         undo: &mut Vec<Undo>,
@@ -578,7 +578,7 @@ impl NodeEditor {
         }
         for ((name, len), saved) in sizes.zip(&s.shape) {
             if saved.len() != len {
-                return Err(name);
+                return Err(name.name());
             }
         }
         let capacity = self.rest.len();

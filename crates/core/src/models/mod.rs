@@ -17,6 +17,46 @@ use crate::scene::{
     ShapeMatchingParams,
 };
 
+/// A shape information array, as backends and the needle's node editor name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum ShapeArray {
+    /// Mass-spring rest length per neighbour slot.
+    RestLength,
+    /// Rest positions (w: 0, or the node volume of the continuum models).
+    RestPosition,
+    /// Shape matching's shape vectors.
+    ShapeVector,
+    /// Warm-start rotation quaternions.
+    Rotation,
+    /// Cluster centre offsets of the current step.
+    ClusterCentre,
+    /// Inverse moment matrices of the continuum models.
+    InverseMoment,
+    /// The continuum models' per-step first-pass result.
+    FirstPass,
+}
+
+impl ShapeArray {
+    /// The array's name in reports and errors (`rest_length`, ...).
+    pub const fn name(self) -> &'static str {
+        match self {
+            ShapeArray::RestLength => "rest_length",
+            ShapeArray::RestPosition => "rest_position",
+            ShapeArray::ShapeVector => "shape_vector",
+            ShapeArray::Rotation => "rotation",
+            ShapeArray::ClusterCentre => "cluster_centre",
+            ShapeArray::InverseMoment => "inverse_moment",
+            ShapeArray::FirstPass => "first_pass",
+        }
+    }
+}
+
+impl std::fmt::Display for ShapeArray {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Per-model shape information arrays, sized for the full capacity.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ShapeInfo {
@@ -93,7 +133,7 @@ macro_rules! named_arrays {
     ($self:expr, $cast:path, $slice:ident) => {
         match $self {
             ShapeInfo::MassSpring { rest_length } => {
-                vec![("rest_length", $cast(rest_length.$slice()))]
+                vec![(ShapeArray::RestLength, $cast(rest_length.$slice()))]
             }
             ShapeInfo::LocalShapeMatching {
                 rest_position,
@@ -102,12 +142,12 @@ macro_rules! named_arrays {
                 cluster_centre,
             } => {
                 let mut v = vec![
-                    ("rest_position", $cast(rest_position.$slice())),
-                    ("shape_vector", $cast(shape_vector.$slice())),
-                    ("rotation", $cast(rotation.$slice())),
+                    (ShapeArray::RestPosition, $cast(rest_position.$slice())),
+                    (ShapeArray::ShapeVector, $cast(shape_vector.$slice())),
+                    (ShapeArray::Rotation, $cast(rotation.$slice())),
                 ];
                 if let Some(c) = cluster_centre {
-                    v.push(("cluster_centre", $cast(c.$slice())));
+                    v.push((ShapeArray::ClusterCentre, $cast(c.$slice())));
                 }
                 v
             }
@@ -119,13 +159,13 @@ macro_rules! named_arrays {
                 ..
             } => {
                 let mut v = vec![
-                    ("rest_position", $cast(rest_position.$slice())),
-                    ("inverse_moment", $cast(inverse_moment.$slice())),
-                    ("first_pass", $cast(first_pass.$slice())),
+                    (ShapeArray::RestPosition, $cast(rest_position.$slice())),
+                    (ShapeArray::InverseMoment, $cast(inverse_moment.$slice())),
+                    (ShapeArray::FirstPass, $cast(first_pass.$slice())),
                 ];
                 if let Some(c) = corotation {
-                    v.push(("shape_vector", $cast(c.shape_vector.$slice())));
-                    v.push(("rotation", $cast(c.rotation.$slice())));
+                    v.push((ShapeArray::ShapeVector, $cast(c.shape_vector.$slice())));
+                    v.push((ShapeArray::Rotation, $cast(c.rotation.$slice())));
                 }
                 v
             }
@@ -135,9 +175,9 @@ macro_rules! named_arrays {
                 first_pass,
                 ..
             } => vec![
-                ("rest_position", $cast(rest_position.$slice())),
-                ("inverse_moment", $cast(inverse_moment.$slice())),
-                ("first_pass", $cast(first_pass.$slice())),
+                (ShapeArray::RestPosition, $cast(rest_position.$slice())),
+                (ShapeArray::InverseMoment, $cast(inverse_moment.$slice())),
+                (ShapeArray::FirstPass, $cast(first_pass.$slice())),
             ],
         }
     };
@@ -237,38 +277,38 @@ impl ShapeInfo {
         nb: &Neighbours,
         volume_scale: f64,
         rest_position: bool,
-    ) -> Vec<(&'static str, usize, Vec<u8>)> {
+    ) -> Vec<(ShapeArray, usize, Vec<u8>)> {
         fn row<T: bytemuck::Pod>(
-            name: &'static str,
+            array: ShapeArray,
             i: usize,
             v: &[T],
-        ) -> (&'static str, usize, Vec<u8>) {
+        ) -> (ShapeArray, usize, Vec<u8>) {
             let b: &[u8] = bytemuck::cast_slice(v);
-            (name, i * b.len(), b.to_vec())
+            (array, i * b.len(), b.to_vec())
         }
         let r0 = [rest[i][0], rest[i][1], rest[i][2], 0.0];
         let mut out = Vec::new();
         if rest_position && matches!(self, ShapeInfo::LocalShapeMatching { .. }) {
-            out.push(row("rest_position", i, &[r0]));
+            out.push(row(ShapeArray::RestPosition, i, &[r0]));
         }
         // Continuum models: x0 with the node volume in w.
         let volume_row = |rule: NodeVolumes| {
             (rest_position || rule == NodeVolumes::Density).then(|| {
                 let v = mls::added_node_volume(rule, i, rest, nb, volume_scale);
-                row("rest_position", i, &[[r0[0], r0[1], r0[2], v]])
+                row(ShapeArray::RestPosition, i, &[[r0[0], r0[1], r0[2], v]])
             })
         };
         match self {
             ShapeInfo::MassSpring { .. } => {
                 out.push(row(
-                    "rest_length",
+                    ShapeArray::RestLength,
                     i,
                     &mass_spring::rest_length_row(i, rest, nb),
                 ));
             }
             ShapeInfo::LocalShapeMatching { .. } => {
                 out.push(row(
-                    "shape_vector",
+                    ShapeArray::ShapeVector,
                     i,
                     &[local_shape_matching::shape_vector(i, rest, nb)],
                 ));
@@ -279,14 +319,14 @@ impl ShapeInfo {
                 ..
             } => {
                 out.push(row(
-                    "inverse_moment",
+                    ShapeArray::InverseMoment,
                     i,
                     &[mls::inverse_moment(i, rest, nb)],
                 ));
                 out.extend(volume_row(*volume_rule));
                 if corotation.is_some() {
                     out.push(row(
-                        "shape_vector",
+                        ShapeArray::ShapeVector,
                         i,
                         &[local_shape_matching::shape_vector(i, rest, nb)],
                     ));
@@ -295,7 +335,7 @@ impl ShapeInfo {
             ShapeInfo::PointBased { volume_rule, .. } => {
                 out.extend(volume_row(*volume_rule));
                 out.push(row(
-                    "inverse_moment",
+                    ShapeArray::InverseMoment,
                     i,
                     &[mls::inverse_moment(i, rest, nb)],
                 ));
@@ -351,27 +391,27 @@ impl ShapeInfo {
 
     /// Whether the model keeps a warm-start rotation per node (array `rotation`).
     pub fn has_rotation(&self) -> bool {
-        self.bytes().iter().any(|(n, _)| *n == "rotation")
+        self.bytes().iter().any(|(n, _)| *n == ShapeArray::Rotation)
     }
 
     /// The arrays this model allocated, with their sizes.
     pub fn arrays(&self) -> Vec<ArrayInfo> {
         self.bytes()
             .into_iter()
-            .map(|(name, b)| ArrayInfo {
-                name,
+            .map(|(array, b)| ArrayInfo {
+                name: array.name(),
                 bytes: b.len(),
             })
             .collect()
     }
 
     /// Every array of the model as mutable raw bytes, by name.
-    pub fn bytes_mut(&mut self) -> Vec<(&'static str, &mut [u8])> {
+    pub fn bytes_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
         named_arrays!(self, bytemuck::cast_slice_mut, as_mut_slice)
     }
 
     /// Every array of the model as raw bytes, by name (the layout the GPU buffers use).
-    pub fn bytes(&self) -> Vec<(&'static str, &[u8])> {
+    pub fn bytes(&self) -> Vec<(ShapeArray, &[u8])> {
         named_arrays!(self, bytemuck::cast_slice, as_slice)
     }
 }

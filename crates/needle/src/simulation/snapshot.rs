@@ -99,7 +99,7 @@ impl Simulation {
         b.write(NodeField::Force, 0, &bs.forces)?;
         let nb = self.editor.neighbours();
         b.write_neighbour_rows(0, &nb.index, &nb.weight)?;
-        let names: Vec<&str> = self.editor.shape().bytes().iter().map(|a| a.0).collect();
+        let names: Vec<_> = self.editor.shape().bytes().iter().map(|a| a.0).collect();
         if names.len() != bs.shape.len() {
             return Err(corrupt("shape arrays differ".into()).into());
         }
