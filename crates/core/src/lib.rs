@@ -1,8 +1,9 @@
 //! # needlesim-core
 //!
-//! The CPU side of needlesim: scenes (TOML), tissue geometry (generated boxes, OBJ
-//! surfaces filled with nodes), neighbour lists, node state, the tissue models, the
-//! integrator, the [`Backend`] trait and the CPU backend.
+//! The CPU side of needlesim: scenes (TOML files, or made in code with
+//! [`Scene::builder`]), tissue geometry (generated boxes, OBJ surfaces filled with nodes),
+//! neighbour lists, node state, the tissue models, the integrator, the [`Backend`] trait
+//! and the CPU backend.
 //!
 //! ```no_run
 //! use needlesim_core::{Backend, CpuBackend, Scene, Threading, Tissue};
