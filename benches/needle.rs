@@ -7,10 +7,10 @@
 //!   on one CPU thread, all CPU threads and the GPU when an adapter is found.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces};
 use needlesim::gpu::GpuBackend;
 use needlesim::needle::{NodeEditor, PunctureState, Simulation};
-use needlesim::{CpuBackend, Scene, Threading, Tissue};
-use std::path::Path;
+use needlesim::{CpuBackend, Material, Scene, Threading, Tissue};
 
 mod common;
 use common::{cube, MODELS};
@@ -62,36 +62,38 @@ fn add_remove(c: &mut Criterion) {
     group.finish();
 }
 
-const INSERTED: &str = r#"
-[tissue]
-neighbours = 16
-geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 10932 }
-[material]
-model = "local_shape_matching"
-stiffness = 20.0
-forces = "cluster"
-[physics]
-dt = 2e-4
-damping = 4.0
-[[fixed]]
-axis = "x"
-above = 0.0995
-[needle]
+/// The `[needle]` table of `step_inserted` (read by `needlesim-needle`): 6.5 cm in, then
+/// held.
+const NEEDLE: &str = r#"
 base = [-0.105, 0.0503, 0.0497]
 direction = [1.0, 0.0, 0.0]
 length = 0.1
-[[needle.keyframe]]
+[[keyframe]]
 action = "move"
 direction = [1.0, 0.0, 0.0]
 speed = 0.1
 duration = 0.65
-[[needle.keyframe]]
+[[keyframe]]
 action = "pause"
 duration = 100.0
 "#;
 
+/// The 10932-node LSHM cube (K = 16) clamped at +x with the needle of [`NEEDLE`].
+fn inserted() -> Scene {
+    Scene::builder()
+        .neighbours(16)
+        .box_with_nodes([0.0; 3], [0.1; 3], 10932)
+        .material(Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Cluster))
+        .dt(2e-4)
+        .damping(4.0)
+        .fixed(NodeSet::above(Axis::X, 0.0995))
+        .needle_toml(NEEDLE)
+        .build()
+        .unwrap()
+}
+
 fn step_inserted(c: &mut Criterion) {
-    let scene = Scene::from_toml_str(INSERTED, Path::new(".")).unwrap();
+    let scene = inserted();
     let mut group = c.benchmark_group("step_inserted");
     group.sample_size(10);
     let prep = |scene: &Scene| Simulation::prepare(scene).unwrap();

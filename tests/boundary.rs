@@ -1,8 +1,9 @@
 //! Boundary conditions written as scenes: rollers, prescribed displacements, surface loads
 //! and the reactions of held sets, against linear elasticity.
 
+use needlesim::core::scene::{Axis, Components, FixedSelection, LoadSpec, NodeSet};
 use needlesim::needle::Simulation;
-use needlesim::{make_backend, NodeField, Scene};
+use needlesim::{make_backend, Material, NodeField, Scene};
 use std::path::Path;
 
 fn run(scene: &Scene, seconds: f64) -> Simulation {
@@ -47,14 +48,7 @@ fn compression_between_frictionless_plates_gives_e_and_nu() {
     for model in ["debunne_meshfree", "point_based"] {
         let mut scene = base.clone();
         if model == "point_based" {
-            scene.material =
-                needlesim::Material::PointBased(needlesim::core::scene::PointBasedParams {
-                    young_modulus: e,
-                    poisson_ratio: nu,
-                    volume_stiffness: 0.0,
-                    hourglass: 0.1,
-                    node_volumes: Default::default(),
-                });
+            scene.material = Material::point_based(e, nu);
         }
         let mut sim = run(&scene, 0.8);
         let r = sim.reactions().unwrap();
@@ -101,12 +95,20 @@ fn compression_between_frictionless_plates_gives_e_and_nu() {
 /// stress, 2%).
 #[test]
 fn a_pressure_on_the_top_is_carried_by_the_floor() {
-    let text = "[tissue]\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.0125 }\n\
-        [material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\n\
-        [physics]\ndt = \"auto\"\ndamping = 120.0\n\
-        [[fixed]]\naxis = \"y\"\nbelow = 0.001\ncomponents = [\"y\"]\n\
-        [[load]]\nbox = { min = [-1.0, 0.099, -1.0], max = [1.0, 1.0, 1.0] }\npressure = 20.0\nramp = 0.1\n";
-    let scene = Scene::from_toml_str(text, Path::new(".")).unwrap();
+    let scene = Scene::builder()
+        .box_with_spacing([0.0; 3], [0.1; 3], 0.0125)
+        .material(Material::debunne(1e4, 0.3))
+        .dt_auto()
+        .damping(120.0)
+        .fixed(
+            FixedSelection::new(NodeSet::below(Axis::Y, 0.001))
+                .with_components(Components::of(&[Axis::Y])),
+        )
+        .load(
+            LoadSpec::pressure(NodeSet::in_box([-1.0, 0.099, -1.0], [1.0; 3]), 20.0).with_ramp(0.1),
+        )
+        .build()
+        .unwrap();
     let mut sim = run(&scene, 0.8);
     let r = sim.reactions().unwrap();
     let want = 20.0 * 0.01;

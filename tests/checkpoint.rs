@@ -6,17 +6,17 @@
 mod common;
 
 use needlesim::needle::{Checkpoint, CheckpointError, PunctureState, Simulation, SimulationError};
-use needlesim::{CpuBackend, NodeField, Scene, Threading};
+use needlesim::{CpuBackend, Material, NodeField, Scene, Threading};
 use std::path::Path;
 
 const INSERT_EXTRACT: &str = include_str!("../scenes/needle_insert_extract.toml");
 
-/// The insert-extract scene with another `[material]` table body.
-fn scene(material: &str) -> Scene {
-    let (head, rest) = INSERT_EXTRACT.split_once("[material]").unwrap();
-    let tail = &rest[rest.find("\n[physics]").unwrap()..];
-    let text = format!("{head}[material]\n{material}\n{tail}");
-    Scene::from_toml_str(&text, Path::new("scenes")).unwrap()
+/// The insert-extract scene with another material.
+fn scene(material: Material) -> Scene {
+    let mut scene = Scene::from_toml_str(INSERT_EXTRACT, Path::new("scenes")).unwrap();
+    scene.material = material;
+    scene.validate().unwrap();
+    scene
 }
 
 fn start(scene: &Scene, threading: Threading) -> Simulation {

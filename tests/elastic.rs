@@ -5,31 +5,33 @@ mod common;
 
 use common::*;
 use needlesim::core::models::{mls, point_based};
-use needlesim::core::scene::lame;
-use needlesim::{Backend, NodeField, Scene, Threading, Tissue};
-use std::path::Path;
+use needlesim::core::scene::{lame, Axis, NodeSet, NodeVolumes, SpringShare};
+use needlesim::{Backend, Material, NodeField, Scene, Threading, Tissue};
 
 const E: f64 = 10e3;
 const NU: f64 = 0.3;
 
 /// A 30 x 10 x 10 cm bar, 2025 nodes (spacing 12.5 mm), clamped at both x ends.
-fn clamped_bar(material: &str) -> Scene {
-    let text = format!(
-        "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.3, 0.1, 0.1], spacing = 0.0125 }}\n\
-         [material]\n{material}\n[physics]\ndt = 2e-4\ndamping = 30.0\n\
-         [[fixed]]\naxis = \"x\"\nbelow = 0.001\n[[fixed]]\naxis = \"x\"\nabove = 0.299\n"
-    );
-    Scene::from_toml_str(&text, Path::new(".")).unwrap()
+fn clamped_bar(material: Material) -> Scene {
+    Scene::builder()
+        .box_with_spacing([0.0; 3], [0.3, 0.1, 0.1], 0.0125)
+        .material(material)
+        .dt(2e-4)
+        .damping(30.0)
+        .fixed(NodeSet::below(Axis::X, 0.001))
+        .fixed(NodeSet::above(Axis::X, 0.299))
+        .build()
+        .unwrap()
 }
 
-fn elastic_models() -> [(&'static str, String); 3] {
-    let m = |model: &str, extra: &str| {
-        format!("model = \"{model}\"\nyoung_modulus = {E}\npoisson_ratio = {NU}\n{extra}")
-    };
+fn elastic_models() -> [(&'static str, Material); 3] {
     [
-        ("deb", m("debunne_meshfree", "")),
-        ("deb-corotated", m("debunne_meshfree", "corotated = true")),
-        ("pba", m("point_based", "")),
+        ("deb", Material::debunne(E, NU)),
+        (
+            "deb-corotated",
+            Material::debunne(E, NU).with_corotated(true),
+        ),
+        ("pba", Material::point_based(E, NU)),
     ]
 }
 
@@ -46,7 +48,7 @@ struct BarResult {
 /// Stretches the clamped bar by `eps` (the +x clamp moved by eps L, free nodes started on
 /// the uniform stretch) and lets it settle for 0.6 s (4 p-wave crossings at damping
 /// 30/s; the results change by less than 1% between 0.4 and 1.2 s).
-fn stretched_bar(material: &str, eps: f64) -> BarResult {
+fn stretched_bar(material: Material, eps: f64) -> BarResult {
     let scene = clamped_bar(material);
     let rest = rest_positions(&scene);
     let mut b = backend(&scene, Threading::Parallel);
@@ -109,7 +111,7 @@ fn stretched_bar(material: &str, eps: f64) -> BarResult {
 #[test]
 fn stretched_bar_carries_e_eps_and_contracts_by_nu_eps() {
     for (label, material) in elastic_models() {
-        let r = stretched_bar(&material, 1e-3);
+        let r = stretched_bar(material, 1e-3);
         eprintln!(
             "{label}: reaction {:.3}, centre stress {:.3} E eps, lateral {:.3} nu eps",
             r.reaction, r.centre_stress, r.lateral
@@ -142,7 +144,7 @@ fn stretched_bar_carries_e_eps_and_contracts_by_nu_eps() {
 fn uniform_strain_leaves_interior_nodes_in_equilibrium() {
     let eps = 1e-3;
     for (label, material) in elastic_models() {
-        let scene = cube_scene(&material, 639, 0.0, [1.0; 3]);
+        let scene = cube_scene(material, 639, 0.0, [1.0; 3]);
         let rest = rest_positions(&scene);
         let mut b = backend(&scene, Threading::Single);
         let mut x = read(&mut b, NodeField::Position);
@@ -254,10 +256,8 @@ fn linear_debunne_is_strained_by_a_finite_rotation() {
 #[test]
 fn volume_term_resists_compression() {
     let outward = |kv: f64| {
-        let material = format!(
-            "model = \"point_based\"\nyoung_modulus = {E}\npoisson_ratio = {NU}\nvolume_stiffness = {kv}"
-        );
-        let scene = cube_scene(&material, 639, 0.0, [0.9, 0.9, 0.9]);
+        let material = Material::point_based(E, NU).with_volume_stiffness(kv);
+        let scene = cube_scene(material, 639, 0.0, [0.9, 0.9, 0.9]);
         let mut b = backend(&scene, Threading::Single);
         b.compute_forces();
         let f = read(&mut b, NodeField::Force);
@@ -289,7 +289,7 @@ fn each_model_allocates_only_its_arrays() {
         "neighbour_index",
         "neighbour_weight",
     ];
-    let expected: [(&str, &str, &[&str]); 6] = [
+    let expected: [(&str, Material, &[&str]); 6] = [
         ("msm", MODELS[0].1, &["rest_length"]),
         (
             "lshm-node",
@@ -345,11 +345,13 @@ fn each_model_allocates_only_its_arrays() {
 /// stiff in bending).
 #[test]
 fn node_volume_rules() {
-    for rule in ["cell", "uniform", "density"] {
-        let material = format!(
-            "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nnode_volumes = \"{rule}\""
-        );
-        let t = Tissue::from_scene(&cube_scene(&material, 639, 0.0, [1.0; 3])).unwrap();
+    for (rule, volumes) in [
+        ("cell", NodeVolumes::Cell),
+        ("uniform", NodeVolumes::Uniform),
+        ("density", NodeVolumes::Density),
+    ] {
+        let material = Material::point_based(1e4, 0.3).with_node_volumes(volumes);
+        let t = Tissue::from_scene(&cube_scene(material, 639, 0.0, [1.0; 3])).unwrap();
         let n = t.n_mesh;
         let v = t.shape.node_volumes(n).unwrap();
         let total: f64 = v.iter().map(|&x| x as f64).sum();
@@ -387,10 +389,9 @@ fn node_volume_rules() {
 #[test]
 fn mass_spring_block_is_as_stiff_as_the_bulk_lattice() {
     let eps = 1e-3;
-    let ratio = |side: usize, share: &str| -> f64 {
-        let material =
-            format!("model = \"mass_spring\"\nstiffness = 1.0\nspring_share = \"{share}\"");
-        let scene = cube_scene(&material, side * side * side, 0.0, [1.0 + eps, 1.0, 1.0]);
+    let ratio = |side: usize, share: SpringShare| -> f64 {
+        let material = Material::mass_spring(1.0).with_spring_share(share);
+        let scene = cube_scene(material, side * side * side, 0.0, [1.0 + eps, 1.0, 1.0]);
         let rest = rest_positions(&scene);
         let t = Tissue::from_scene(&scene).unwrap();
         assert_eq!(t.n_mesh, side * side * side);
@@ -420,7 +421,11 @@ fn mass_spring_block_is_as_stiff_as_the_bulk_lattice() {
             / a.powi(3);
         transmitted / (c11 * eps * 0.01)
     };
-    let (r5, r9, equal9) = (ratio(5, "cell"), ratio(9, "cell"), ratio(9, "equal"));
+    let (r5, r9, equal9) = (
+        ratio(5, SpringShare::Cell),
+        ratio(9, SpringShare::Cell),
+        ratio(9, SpringShare::Equal),
+    );
     eprintln!("cell: {r5:.4} (5^3), {r9:.4} (9^3); equal: {equal9:.4} (9^3)");
     assert!((r5 - 1.0).abs() < 0.08, "{r5}");
     assert!((r9 - 1.0).abs() < 0.02, "{r9}");

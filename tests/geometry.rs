@@ -2,11 +2,12 @@
 //! density times volume, and a stable step that follows the spacing.
 
 use needlesim::core::geometry::{self, obj::Surface, resample, shapes};
-use needlesim::{Scene, Tissue};
+use needlesim::core::scene::{Geometry, NodeMasses, ObjGeometry, SurfaceNodes};
+use needlesim::{Material, Scene, Tissue};
 use std::fmt::Write as _;
 use std::path::Path;
 
-const DEB: &str = "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3";
+const DEB: Material = Material::debunne(1e4, 0.3);
 
 fn write_obj(path: &Path, s: &Surface) {
     let mut text = String::new();
@@ -97,11 +98,15 @@ fn write_vtu(path: &Path, s: &Surface, cell_type: u8) {
     std::fs::write(path, text).unwrap();
 }
 
-fn scene(geometry: &str, masses: &str, dir: &Path) -> Scene {
-    let text = format!(
-        "[tissue]\ndensity = 1070.0\nmasses = \"{masses}\"\ngeometry = {geometry}\n[material]\n{DEB}\n"
-    );
-    Scene::from_toml_str(&text, dir).unwrap()
+fn scene(geometry: Geometry, masses: NodeMasses, dir: &Path) -> Scene {
+    Scene::builder()
+        .density(1070.0)
+        .masses(masses)
+        .geometry(geometry)
+        .material(DEB)
+        .base_dir(dir)
+        .build()
+        .unwrap()
 }
 
 /// Every geometry kind, with both mass rules: the node masses add up to density times
@@ -115,18 +120,34 @@ fn total_mass_is_density_times_volume_for_every_geometry_kind() {
     write_ascii_stl(&dir.path().join("ball.stl"), &ball);
     write_legacy_vtk(&dir.path().join("ball.vtk"), &ball);
     write_vtu(&dir.path().join("ball.vtu"), &ball, 5);
+    let (lo, hi) = ([0.0; 3], [0.05, 0.03, 0.04]);
     let kinds = [
-        "{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.03, 0.04], spacing = 0.01 }",
-        "{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.03, 0.04], nodes = 300 }",
-        "{ kind = \"obj\", path = \"ball.obj\", spacing = 0.012 }",
-        "{ kind = \"obj\", path = \"ball.obj\", spacing = 0.012, surface = \"vertices\" }",
-        "{ kind = \"stl\", path = \"ball.stl\", spacing = 0.012 }",
-        "{ kind = \"vtk\", path = \"ball.vtk\", spacing = 0.012 }",
-        "{ kind = \"vtk\", path = \"ball.vtu\", spacing = 0.012 }",
+        ("box, spacing", Geometry::box_with_spacing(lo, hi, 0.01)),
+        ("box, nodes", Geometry::box_with_nodes(lo, hi, 300)),
+        (
+            "obj ball.obj",
+            Geometry::Obj(ObjGeometry::new("ball.obj", 0.012)),
+        ),
+        (
+            "obj ball.obj, surface vertices",
+            Geometry::Obj(ObjGeometry::new("ball.obj", 0.012).with_surface(SurfaceNodes::Vertices)),
+        ),
+        (
+            "stl ball.stl",
+            Geometry::Stl(ObjGeometry::new("ball.stl", 0.012)),
+        ),
+        (
+            "vtk ball.vtk",
+            Geometry::Vtk(ObjGeometry::new("ball.vtk", 0.012)),
+        ),
+        (
+            "vtk ball.vtu",
+            Geometry::Vtk(ObjGeometry::new("ball.vtu", 0.012)),
+        ),
     ];
-    for kind in kinds {
-        for masses in ["cell", "uniform"] {
-            let s = scene(kind, masses, dir.path());
+    for (kind, geometry) in &kinds {
+        for (masses, rule) in [("cell", NodeMasses::Cell), ("uniform", NodeMasses::Uniform)] {
+            let s = scene(geometry.clone(), rule, dir.path());
             let t = Tissue::from_scene(&s).unwrap_or_else(|e| panic!("{kind}: {e}"));
             let total: f64 = t.masses.iter().sum();
             let want = 1070.0 * t.volume;
@@ -148,7 +169,7 @@ fn total_mass_is_density_times_volume_for_every_geometry_kind() {
             if kind.contains("ball.vt") && masses == "cell" {
                 // VTK files give the same nodes as the OBJ of the same surface (tobj reads
                 // f32, vtkio f64: positions agree to f32 rounding, 1e-8 m here).
-                let obj = scene(kinds[2], masses, dir.path());
+                let obj = scene(kinds[2].1.clone(), rule, dir.path());
                 let o = Tissue::from_scene(&obj).unwrap();
                 assert_eq!(o.n_mesh, t.n_mesh, "{kind}");
                 for (a, b) in o.state.positions.iter().zip(&t.state.positions) {
@@ -162,7 +183,7 @@ fn total_mass_is_density_times_volume_for_every_geometry_kind() {
         }
     }
     // A box corner node stands for an eighth of an interior cell, an edge node a quarter.
-    let s = scene(kinds[0], "cell", dir.path());
+    let s = scene(kinds[0].1.clone(), NodeMasses::Cell, dir.path());
     let t = Tissue::from_scene(&s).unwrap();
     let interior = 1070.0 * 0.01f64.powi(3);
     assert!((t.masses[0] / interior - 0.125).abs() < 1e-9);
@@ -223,8 +244,8 @@ fn resampled_node_count_follows_the_spacing_not_the_triangle_count() {
 fn the_stable_step_follows_the_spacing_on_a_sphere() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene(
-        "{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.02 }",
-        "cell",
+        Geometry::box_with_spacing([0.0; 3], [0.1; 3], 0.02),
+        NodeMasses::Cell,
         dir.path(),
     );
     let ball = shapes::icosphere([0.0; 3], 0.05, 4);
@@ -262,10 +283,11 @@ fn bad_vtk_files_are_rejected_with_the_reason() {
         ("garbage.vtk", "cannot load"),
         ("absent.vtp", "cannot load"),
     ] {
-        let text = format!(
-            "[tissue]\ngeometry = {{ kind = \"vtk\", path = \"{file}\", spacing = 0.01 }}\n[material]\n{DEB}\n"
-        );
-        let err = Scene::from_toml_str(&text, d)
+        let err = Scene::builder()
+            .geometry(Geometry::Vtk(ObjGeometry::new(file, 0.01)))
+            .material(DEB)
+            .base_dir(d)
+            .build()
             .and_then(|s| Tissue::from_scene(&s).map(|_| ()))
             .expect_err(file);
         let msg = err.to_string();
@@ -282,10 +304,13 @@ fn a_unit_mistake_is_caught_before_allocating() {
         &dir.path().join("mm.obj"),
         &shapes::icosphere([0.0; 3], 50.0, 2),
     );
-    let text = format!(
-        "[tissue]\ngeometry = {{ kind = \"obj\", path = \"mm.obj\", spacing = 0.005 }}\n[material]\n{DEB}\n"
-    );
-    let err = Tissue::from_scene(&Scene::from_toml_str(&text, dir.path()).unwrap()).unwrap_err();
+    let scene = Scene::builder()
+        .obj(ObjGeometry::new("mm.obj", 0.005))
+        .material(DEB)
+        .base_dir(dir.path())
+        .build()
+        .unwrap();
+    let err = Tissue::from_scene(&scene).unwrap_err();
     let msg = err.to_string();
     assert!(
         msg.contains("tissue.geometry.spacing") && msg.contains("scale"),
@@ -309,20 +334,14 @@ fn surface_files_can_be_rotated_and_translated() {
     // Not a divisor of the radius: no lattice point lies exactly on the surface, where
     // the shifted lattice's rounding could flip an inside test.
     let h = 0.0047;
-    let base = format!("kind = \"obj\", path = \"cap.obj\", spacing = {h}, scale = 0.001");
-    let plain = scene(&format!("{{ {base} }}"), "cell", dir.path());
-    let shifted = scene(
-        &format!("{{ {base}, translate = [0.5, -0.25, 1.0] }}"),
-        "cell",
-        dir.path(),
-    );
-    let moved = scene(
-        &format!(
-            "{{ {base}, rotate = {{ axis = [0.0, 0.0, 2.0], degrees = 90.0 }}, translate = [0.5, -0.25, 1.0] }}"
-        ),
-        "cell",
-        dir.path(),
-    );
+    let base = ObjGeometry::new("cap.obj", h).with_scale(0.001);
+    let obj = |g: ObjGeometry| scene(Geometry::Obj(g), NodeMasses::Cell, dir.path());
+    let plain = obj(base.clone());
+    let shifted = obj(base.clone().with_translate([0.5, -0.25, 1.0]));
+    let moved = obj(base
+        .clone()
+        .with_rotate([0.0, 0.0, 2.0], 90.0)
+        .with_translate([0.5, -0.25, 1.0]));
     let cloud = |s: &Scene| geometry::build(&s.tissue.geometry, dir.path()).unwrap();
     let (a, b) = (cloud(&plain), cloud(&shifted));
     assert_eq!(a.positions.len(), b.positions.len());
@@ -352,20 +371,33 @@ fn surface_files_can_be_rotated_and_translated() {
     let mass = |s: &Scene| Tissue::from_scene(s).unwrap().masses.iter().sum::<f64>();
     let (m0, m1) = (mass(&plain), mass(&moved));
     assert!((m1 / m0 - 1.0).abs() < 1e-9, "{m0} vs {m1}");
-    for (bad, key) in [
+    for (bad, geometry, key) in [
         (
             "rotate = { axis = [0.0, 0.0, 0.0], degrees = 90.0 }",
+            base.clone().with_rotate([0.0; 3], 90.0),
             "tissue.geometry.rotate.axis",
         ),
         (
             "rotate = { axis = [0.0, 1.0, 0.0], degrees = inf }",
+            base.clone().with_rotate([0.0, 1.0, 0.0], f64::INFINITY),
             "tissue.geometry.rotate.degrees",
         ),
-        ("translate = [0.0, nan, 0.0]", "tissue.geometry.translate"),
-        ("translate = [1e6, 0.0, 0.0]", "tissue.geometry.translate"),
+        (
+            "translate = [0.0, nan, 0.0]",
+            base.clone().with_translate([0.0, f64::NAN, 0.0]),
+            "tissue.geometry.translate",
+        ),
+        (
+            "translate = [1e6, 0.0, 0.0]",
+            base.clone().with_translate([1e6, 0.0, 0.0]),
+            "tissue.geometry.translate",
+        ),
     ] {
-        let text = format!("[tissue]\ngeometry = {{ {base}, {bad} }}\n[material]\n{DEB}\n");
-        let err = Scene::from_toml_str(&text, dir.path())
+        let err = Scene::builder()
+            .obj(geometry)
+            .material(DEB)
+            .base_dir(dir.path())
+            .build()
             .map_err(|e| e.to_string())
             .and_then(|s| {
                 Tissue::from_scene(&s)

@@ -6,8 +6,9 @@ mod common;
 
 use common::*;
 use needlesim::core::models::ShapeArray;
+use needlesim::core::scene::{Axis, Components, FixedSelection, LoadSpec, NodeSet, Prescribed};
 use needlesim::gpu::{GpuBackend, GpuError};
-use needlesim::{Backend, NodeField, Threading, Tissue};
+use needlesim::{Backend, Material, NodeField, Scene, Threading, Tissue};
 
 fn gpu(tissue: &Tissue) -> Option<GpuBackend> {
     match GpuBackend::new(tissue) {
@@ -244,15 +245,25 @@ fn shape_rows_written_on_either_backend_agree() {
 /// multiply-adds.
 #[test]
 fn boundary_conditions_agree_on_gpu_and_cpu() {
-    let text = "[tissue]\ndensity = 1000.0\n\
-        geometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.0125 }\n\
-        [material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\n\
-        [physics]\ndt = \"auto\"\ndamping = 120.0\n\
-        [[fixed]]\nname = \"floor\"\naxis = \"y\"\nbelow = 0.001\ncomponents = [\"y\"]\n\
-        [[prescribed]]\nname = \"plate\"\naxis = \"y\"\nabove = 0.099\ncomponents = [\"y\"]\n\
-        displacement = [0.0, -0.001, 0.0]\nramp = 0.02\n\
-        [[load]]\nname = \"side\"\naxis = \"x\"\nabove = 0.099\npressure = 20.0\n";
-    let scene = needlesim::Scene::from_toml_str(text, std::path::Path::new(".")).unwrap();
+    let scene = Scene::builder()
+        .density(1000.0)
+        .box_with_spacing([0.0; 3], [0.1; 3], 0.0125)
+        .material(Material::debunne(1e4, 0.3))
+        .dt_auto()
+        .damping(120.0)
+        .fixed(
+            FixedSelection::new(NodeSet::below(Axis::Y, 0.001))
+                .with_components(Components::of(&[Axis::Y]))
+                .with_name("floor"),
+        )
+        .prescribed(
+            Prescribed::displacement(NodeSet::above(Axis::Y, 0.099), [0.0, -0.001, 0.0], 0.02)
+                .with_components(Components::of(&[Axis::Y]))
+                .with_name("plate"),
+        )
+        .load(LoadSpec::pressure(NodeSet::above(Axis::X, 0.099), 20.0).with_name("side"))
+        .build()
+        .unwrap();
     // Final positions and reaction forces, or None without a GPU adapter.
     type Outcome = (Vec<[f32; 4]>, Vec<[f64; 3]>);
     let run = |gpu_backend: bool| -> Option<Outcome> {
@@ -298,11 +309,13 @@ fn boundary_conditions_agree_on_gpu_and_cpu() {
 #[test]
 fn a_checkpoint_round_trips_through_the_gpu() {
     use needlesim::needle::{Checkpoint, PunctureState, Simulation};
-    let text = include_str!("../scenes/needle_insert_extract.toml").replace(
-        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
-        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\ncorotated = true",
-    );
-    let scene = needlesim::Scene::from_toml_str(&text, std::path::Path::new("scenes")).unwrap();
+    let mut scene = needlesim::Scene::from_toml_str(
+        include_str!("../scenes/needle_insert_extract.toml"),
+        std::path::Path::new("scenes"),
+    )
+    .unwrap();
+    scene.material = Material::debunne(1e4, 0.3).with_corotated(true);
+    scene.validate().unwrap();
     let prep = Simulation::prepare(&scene).unwrap();
     let Some(b) = gpu(&prep.tissue) else { return };
     let mut sim = prep.start(Box::new(b)).unwrap();

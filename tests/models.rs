@@ -4,13 +4,13 @@
 
 mod common;
 use common::*;
-use needlesim::{Backend, NodeField, Threading};
+use needlesim::{Backend, Material, NodeField, Threading};
 
 /// Largest force at rest relative to the largest force of the same cube stretched by 30%.
 /// 1e-5 is the issue's criterion; f32 round-off of the rest state is about 1e-7 relative.
 const EQUILIBRIUM_TOL: f64 = 1e-5;
 
-fn stretched_force_scale(material: &str) -> f64 {
+fn stretched_force_scale(material: Material) -> f64 {
     let scene = cube_scene(material, 639, 0.0, [1.3, 1.0, 1.0]);
     let mut b = backend(&scene, Threading::Single);
     b.compute_forces();
@@ -272,11 +272,10 @@ fn q1_diagonal(e: f64, nu: f64, h: f64) -> f64 {
 fn a_single_node_stiffens_with_hourglass_control_towards_the_fem_diagonal() {
     let (e, nu) = (1e4, 0.45);
     let stiffness = |alpha: f64| {
-        let m = format!(
-            "model = \"debunne_meshfree\"\nyoung_modulus = {e}\npoisson_ratio = {nu}\n\
-             corotated = true\nhourglass = {alpha}"
-        );
-        let scene = cube_scene(&m, 343, 0.0, [1.0; 3]);
+        let m = Material::debunne(e, nu)
+            .with_corotated(true)
+            .with_hourglass(alpha);
+        let scene = cube_scene(m, 343, 0.0, [1.0; 3]);
         let rest = rest_positions(&scene);
         let c = (0..rest.len())
             .min_by(|&a, &b| {

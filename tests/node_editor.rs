@@ -4,8 +4,9 @@
 
 mod common;
 use common::*;
+use needlesim::core::scene::NodeVolumes;
 use needlesim::needle::NodeEditor;
-use needlesim::{Backend, CpuBackend, NodeField, Threading, Tissue};
+use needlesim::{Backend, CpuBackend, Material, NodeField, Threading, Tissue};
 
 struct Lcg(u64);
 impl Lcg {
@@ -18,7 +19,7 @@ impl Lcg {
     }
 }
 
-fn setup(material: &str, extra: usize) -> (CpuBackend, NodeEditor, Vec<[f64; 3]>) {
+fn setup(material: Material, extra: usize) -> (CpuBackend, NodeEditor, Vec<[f64; 3]>) {
     let scene = cube_scene(material, 343, 0.0, [1.0; 3]);
     let rest = rest_positions(&scene);
     let tissue = Tissue::from_scene_with_capacity(&scene, extra).unwrap();
@@ -51,9 +52,9 @@ fn inside(rng: &mut Lcg) -> [f32; 3] {
 
 /// Point based animation with Mueller 2004's density-estimated node volumes, which change
 /// for every node whose neighbour row changes (the default cell volumes do not).
-const PBA_DENSITY: (&str, &str) = (
+const PBA_DENSITY: (&str, Material) = (
     "pba-density",
-    "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nnode_volumes = \"density\"",
+    Material::point_based(1e4, 0.3).with_node_volumes(NodeVolumes::Density),
 );
 
 #[test]

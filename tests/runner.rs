@@ -1,15 +1,20 @@
 //! The scene runner stops with a typed error instead of writing NaN.
 
-use needlesim::{run_scene, RunError, RunOptions, Scene, SimError};
-use std::path::Path;
+use needlesim::{run_scene, Material, RunError, RunOptions, Scene, SimError};
 
 #[test]
 fn a_diverging_scene_stops_with_the_step_and_node() {
     // dt far above the explicit stability limit of these springs (about 1e-4 s).
-    let text = "[tissue]\ngeometry = { kind = \"box\", min = [0,0,0], max = [0.1,0.1,0.1], nodes = 639 }\n\
-                [material]\nmodel = \"mass_spring\"\nstiffness = 1e5\n[physics]\ndt = 1e-2\ncheck_every = 1\n\
-                [initial]\nstretch = [1.3, 1.0, 1.0]\n[run]\nsteps = 5000\noutput_every = 10\n";
-    let scene = Scene::from_toml_str(text, Path::new(".")).unwrap();
+    let scene = Scene::builder()
+        .box_with_nodes([0.0; 3], [0.1; 3], 639)
+        .material(Material::mass_spring(1e5))
+        .dt(1e-2)
+        .check_every(1)
+        .stretch([1.3, 1.0, 1.0])
+        .steps(5000)
+        .output_every(10)
+        .build()
+        .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let err = run_scene(&scene, &RunOptions::new(dir.path()), |_, _| {}).unwrap_err();
     // Checked every step (physics.check_every = 1), the speed guard (physics.max_speed,

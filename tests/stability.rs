@@ -6,18 +6,20 @@
 mod common;
 use common::*;
 use needlesim::core::backend::check_bounded;
+use needlesim::core::scene::{ShapeMatchingForces, TimeStep};
 use needlesim::core::stability::max_eigenvalue;
-use needlesim::{Backend, CpuBackend, Scene, Threading, Tissue};
-use std::path::Path;
+use needlesim::{Backend, CpuBackend, Material, Scene, Threading, Tissue};
 
 /// The 10 cm cube of about 343 nodes with velocity damping `damping`, at rest except for a 0.1 mm random
 /// perturbation, with time step `dt`.
-fn cube(material: &str, dt: f64, damping: f64) -> CpuBackend {
-    let text = format!(
-        "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 343 }}\n\
-         [material]\n{material}\n[physics]\ndt = {dt}\ndamping = {damping}\n"
-    );
-    let scene = Scene::from_toml_str(&text, Path::new(".")).unwrap();
+fn cube(material: Material, dt: f64, damping: f64) -> CpuBackend {
+    let scene = Scene::builder()
+        .box_with_nodes([0.0; 3], [0.1; 3], 343)
+        .material(material)
+        .dt(dt)
+        .damping(damping)
+        .build()
+        .unwrap();
     let mut b = CpuBackend::new(Tissue::from_scene(&scene).unwrap(), Threading::Single).unwrap();
     let mut p = read(&mut b, needlesim::NodeField::Position);
     let mut s = 11u64;
@@ -70,24 +72,39 @@ fn estimated_critical_dt_separates_stable_from_unstable_steps() {
 fn auto_dt_is_stable_on_stiff_scenes() {
     const RUNAWAY_SPEED: f64 = 1000.0;
     let stiff = [
-        ("msm", "model = \"mass_spring\"\nstiffness = 1e5", 0.0),
+        ("msm", Material::mass_spring(1e5), 0.0),
         // The paper's node forces gain energy at a rate growing like sqrt(k); they need
         // damping at any step (20/s at the default stiffness, times sqrt(1000)).
-        ("lshm-node", "model = \"local_shape_matching\"\nstiffness = 2e4\nforces = \"node\"", 630.0),
-        ("lshm-cluster", "model = \"local_shape_matching\"\nstiffness = 2e4\nforces = \"cluster\"", 0.0),
-        ("deb", "model = \"debunne_meshfree\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3", 0.0),
-        ("deb-corotated", "model = \"debunne_meshfree\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3\ncorotated = true", 0.0),
-        ("pba", "model = \"point_based\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3", 0.0),
+        (
+            "lshm-node",
+            Material::shape_matching(2e4).with_forces(ShapeMatchingForces::Node),
+            630.0,
+        ),
+        (
+            "lshm-cluster",
+            Material::shape_matching(2e4).with_forces(ShapeMatchingForces::Cluster),
+            0.0,
+        ),
+        ("deb", Material::debunne(1e7, 0.3), 0.0),
+        (
+            "deb-corotated",
+            Material::debunne(1e7, 0.3).with_corotated(true),
+            0.0,
+        ),
+        ("pba", Material::point_based(1e7, 0.3), 0.0),
     ];
     for (name, material, damping) in stiff {
-        let scene = |dt: &str| {
-            let text = format!(
-                "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 343 }}\n\
-                 [material]\n{material}\n[physics]\ndt = {dt}\ndamping = {damping}\n[initial]\nstretch = [1.2, 1.0, 1.0]\n"
-            );
-            Scene::from_toml_str(&text, Path::new(".")).unwrap()
+        let scene = |dt: TimeStep| {
+            Scene::builder()
+                .box_with_nodes([0.0; 3], [0.1; 3], 343)
+                .material(material)
+                .time_step(dt)
+                .damping(damping)
+                .stretch([1.2, 1.0, 1.0])
+                .build()
+                .unwrap()
         };
-        let auto = Tissue::from_scene(&scene("\"auto\"")).unwrap();
+        let auto = Tissue::from_scene(&scene(TimeStep::Auto)).unwrap();
         let dt = auto.step.dt as f64;
         let mut b = CpuBackend::new(auto, Threading::Parallel).unwrap();
         let mut ok = true;
@@ -96,7 +113,7 @@ fn auto_dt_is_stable_on_stiff_scenes() {
             ok &= check_bounded(&mut b, RUNAWAY_SPEED).is_ok();
         }
         let mut fixed = CpuBackend::new(
-            Tissue::from_scene(&scene("1e-3")).unwrap(),
+            Tissue::from_scene(&scene(TimeStep::Seconds(1e-3))).unwrap(),
             Threading::Parallel,
         )
         .unwrap();

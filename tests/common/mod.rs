@@ -1,52 +1,44 @@
 #![allow(dead_code)]
 use needlesim::core::geometry;
-use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
-use std::path::Path;
+use needlesim::core::scene::ShapeMatchingForces;
+use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, Threading, Tissue};
 
-/// The rotation-invariant force models under test: (label, [material] table body).
-pub const MODELS: [(&str, &str); 5] = [
-    (
-        "msm",
-        "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.0",
-    ),
+/// The rotation-invariant force models under test: (label, material).
+pub const MODELS: [(&str, Material); 5] = [
+    ("msm", Material::mass_spring(100.0).with_spring_damping(0.0)),
     (
         "lshm-node",
-        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"node\"",
+        Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Node),
     ),
     (
         "lshm-cluster",
-        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
+        Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Cluster),
     ),
     (
         "deb-corotated",
-        "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\ncorotated = true",
+        Material::debunne(1e4, 0.3).with_corotated(true),
     ),
-    (
-        "pba",
-        "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
-    ),
+    ("pba", Material::point_based(1e4, 0.3)),
 ];
 
 /// The plain (linear, not co-rotated) Debunne model: not rotation invariant.
-pub const LINEAR_DEB: (&str, &str) = (
-    "deb",
-    "model = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3",
-);
+pub const LINEAR_DEB: (&str, Material) = ("deb", Material::debunne(1e4, 0.3));
 
 /// Every model variant.
-pub fn all_models() -> Vec<(&'static str, &'static str)> {
+pub fn all_models() -> Vec<(&'static str, Material)> {
     MODELS.iter().copied().chain([LINEAR_DEB]).collect()
 }
 
 /// A free 10 cm cube of about `nodes` nodes with the given material, damping and stretch.
-pub fn cube_scene(material: &str, nodes: usize, damping: f64, stretch: [f64; 3]) -> Scene {
-    let text = format!(
-        "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = {nodes} }}\n\
-         [material]\n{material}\n[physics]\ndt = 1e-3\ndamping = {damping}\n\
-         [initial]\nstretch = [{}, {}, {}]\n",
-        stretch[0], stretch[1], stretch[2]
-    );
-    Scene::from_toml_str(&text, Path::new(".")).expect("valid test scene")
+pub fn cube_scene(material: Material, nodes: usize, damping: f64, stretch: [f64; 3]) -> Scene {
+    Scene::builder()
+        .box_with_nodes([0.0; 3], [0.1; 3], nodes)
+        .material(material)
+        .dt(1e-3)
+        .damping(damping)
+        .stretch(stretch)
+        .build()
+        .expect("valid test scene")
 }
 
 pub fn rest_positions(scene: &Scene) -> Vec<[f64; 3]> {
@@ -66,8 +58,9 @@ pub fn read(b: &mut dyn Backend, field: NodeField) -> Vec<[f32; 4]> {
     out
 }
 
+/// Length of a node vector's xyz, in f64 (glam at the storage boundary).
 pub fn norm3(v: [f32; 4]) -> f64 {
-    (0..3).map(|a| (v[a] as f64).powi(2)).sum::<f64>().sqrt()
+    needlesim::core::math::xyz(v).as_dvec3().length()
 }
 
 pub fn max_norm(v: &[[f32; 4]]) -> f64 {

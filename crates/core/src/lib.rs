@@ -1,8 +1,9 @@
 //! # needlesim-core
 //!
-//! The CPU side of needlesim: scenes (TOML), tissue geometry (generated boxes, OBJ
-//! surfaces filled with nodes), neighbour lists, node state, the tissue models, the
-//! integrator, the [`Backend`] trait and the CPU backend.
+//! The CPU side of needlesim: scenes (TOML files, or made in code with
+//! [`Scene::builder`]), tissue geometry (generated boxes, OBJ surfaces filled with nodes),
+//! neighbour lists, node state, the tissue models, the integrator, the [`Backend`] trait
+//! and the CPU backend.
 //!
 //! ```no_run
 //! use needlesim_core::{Backend, CpuBackend, Scene, Threading, Tissue};
@@ -30,6 +31,7 @@ pub mod math;
 pub mod models;
 pub mod neighbours;
 pub mod scene;
+pub mod scene_builder;
 pub mod stability;
 pub mod state;
 pub mod stepper;
@@ -44,5 +46,6 @@ pub use cpu::{CpuBackend, Threading};
 pub use error::{GeometryError, SceneError, SimError};
 pub use math::Vec4;
 pub use scene::{Material, Scene};
+pub use scene_builder::SceneBuilder;
 pub use stepper::Stepper;
 pub use tissue::Tissue;

@@ -129,7 +129,7 @@ pub enum NodeMasses {
     Uniform,
 }
 
-fn default_density() -> f64 {
+pub(crate) fn default_density() -> f64 {
     1000.0
 }
 /// Fewest neighbours per node a scene may ask for. With K nearest neighbours a body of n
@@ -330,7 +330,7 @@ pub struct DebunneParams {
 }
 
 /// Hourglass control on by default: without it zig-zag fields cost no energy.
-fn default_hourglass() -> f64 {
+pub(crate) const fn default_hourglass() -> f64 {
     0.1
 }
 
@@ -454,7 +454,7 @@ pub enum ShapeMatchingForces {
 /// Warm started from the previous step, the rotation moves little per step; two
 /// iterations keep it converged while halving the cost of eight (measured on the
 /// 10932-node bench).
-fn default_rotation_iterations() -> u32 {
+pub(crate) const fn default_rotation_iterations() -> u32 {
     2
 }
 

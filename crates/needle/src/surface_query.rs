@@ -37,9 +37,9 @@ pub struct SurfaceHit {
 }
 
 /// Where the segment `p0 -> p1` crosses triangle `(a, b, c)`: `(t, [w_a, w_b, w_c])`, or
-/// `None` (also for a segment in the triangle's plane or a degenerate triangle). Edges and
-/// corners count as inside up to a relative 1e-12, so a segment through a shared edge or
-/// vertex crosses every triangle around it.
+/// `None`. Edges and corners count as inside up to a relative 1e-12, so a segment through a
+/// shared edge or vertex crosses every triangle around it
+/// ([`needlesim_core::geometry::segment_triangle`] with [`WATERTIGHT`]).
 pub fn segment_triangle(
     p0: [f64; 3],
     p1: [f64; 3],
@@ -47,34 +47,12 @@ pub fn segment_triangle(
     b: [f64; 3],
     c: [f64; 3],
 ) -> Option<(f64, [f64; 3])> {
-    const EPS: f64 = 1e-12;
-    let (p0, a) = (DVec3::from_array(p0), DVec3::from_array(a));
-    let d = DVec3::from_array(p1) - p0;
-    let e1 = DVec3::from_array(b) - a;
-    let e2 = DVec3::from_array(c) - a;
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    let scale = (d.length_squared() * e1.length_squared() * e2.length_squared()).sqrt();
-    if det.abs() <= EPS * scale {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = p0 - a;
-    let u = inv * s.dot(h);
-    if !(-EPS..=1.0 + EPS).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = inv * d.dot(q);
-    if v < -EPS || u + v > 1.0 + EPS {
-        return None;
-    }
-    let t = inv * e2.dot(q);
-    if !(-EPS..=1.0 + EPS).contains(&t) {
-        return None;
-    }
-    Some((t.clamp(0.0, 1.0), [1.0 - u - v, u, v]))
+    needlesim_core::geometry::segment_triangle(p0, p1, [a, b, c], WATERTIGHT)
 }
+
+/// The relative tolerance that makes the needle's segment test watertight on shared edges
+/// and vertices.
+pub const WATERTIGHT: f64 = 1e-12;
 
 /// Which way a segment crosses a triangle, by the triangle's outward normal
 /// `(b - a) x (c - a)` (counter-clockwise winding seen from outside).

@@ -39,9 +39,11 @@ use needlesim::runner::{make_backend, RunError};
 use needlesim_core::backend::check_bounded;
 use needlesim_core::calibration;
 use needlesim_core::integrator::StepParams;
-use needlesim_core::scene::BackendChoice;
+use needlesim_core::scene::{Axis, BackendChoice, LoadSpec, NodeSet, ShapeMatchingForces};
 use needlesim_core::stability::max_eigenvalue;
-use needlesim_core::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
+use needlesim_core::{
+    Backend, CpuBackend, Material, NodeField, Scene, SceneBuilder, Threading, Tissue,
+};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -100,35 +102,28 @@ impl ModelId {
         }
     }
 
-    /// The `[material]` table for Young's modulus `young` on a lattice of spacing `h`
-    /// (mass-spring and shape matching take their stiffness from the calibration rule).
-    pub fn material(self, young: f64, h: f64) -> String {
+    /// The material for Young's modulus `young` on a lattice of spacing `h` (mass-spring
+    /// and shape matching take their stiffness from the calibration rule), Poisson ratio
+    /// [`POISSON`], other parameters at their defaults.
+    pub fn material(self, young: f64, h: f64) -> Material {
         let k = |c: Result<f64, calibration::UncalibratedNeighbours>| {
             c.expect("the report's K is calibrated (tested)")
         };
-        let elastic = |model: &str, extra: &str| {
-            format!("model = \"{model}\"\nyoung_modulus = {young:e}\npoisson_ratio = {POISSON}\n{extra}")
-        };
         match self {
-            ModelId::Msm => format!(
-                "model = \"mass_spring\"\nstiffness = {:e}\nspring_damping = 0.0\n",
-                k(calibration::mass_spring_stiffness(young, h, NEIGHBOURS))
-            ),
-            ModelId::LshmNode => format!(
-                "model = \"local_shape_matching\"\nforces = \"node\"\nstiffness = {:e}\n",
-                k(calibration::shape_matching_stiffness(
-                    young, h, NEIGHBOURS, false
-                ))
-            ),
-            ModelId::LshmCluster => format!(
-                "model = \"local_shape_matching\"\nforces = \"cluster\"\nstiffness = {:e}\n",
-                k(calibration::shape_matching_stiffness(
-                    young, h, NEIGHBOURS, true
-                ))
-            ),
-            ModelId::Deb => elastic("debunne_meshfree", ""),
-            ModelId::DebCorotated => elastic("debunne_meshfree", "corotated = true"),
-            ModelId::Pba => elastic("point_based", ""),
+            ModelId::Msm => {
+                Material::mass_spring(k(calibration::mass_spring_stiffness(young, h, NEIGHBOURS)))
+            }
+            ModelId::LshmNode => Material::shape_matching(k(
+                calibration::shape_matching_stiffness(young, h, NEIGHBOURS, false),
+            ))
+            .with_forces(ShapeMatchingForces::Node),
+            ModelId::LshmCluster => Material::shape_matching(k(
+                calibration::shape_matching_stiffness(young, h, NEIGHBOURS, true),
+            ))
+            .with_forces(ShapeMatchingForces::Cluster),
+            ModelId::Deb => Material::debunne(young, POISSON),
+            ModelId::DebCorotated => Material::debunne(young, POISSON).with_corotated(true),
+            ModelId::Pba => Material::point_based(young, POISSON),
         }
     }
 
@@ -298,14 +293,17 @@ struct Setup {
     h: f64,
 }
 
-fn scene(max: [f64; 3], h: f64, material: &str, gravity: f64, damping: f64, fixed: &str) -> Scene {
-    let text = format!(
-        "[tissue]\ndensity = {DENSITY}\nneighbours = {NEIGHBOURS}\n\
-         geometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{}, {}, {}], spacing = {h:e} }}\n\
-         [material]\n{material}\n[physics]\ndt = 1e-3\ngravity = [0.0, {:e}, 0.0]\ndamping = {damping:e}\nmax_speed = 100.0\n{fixed}",
-        max[0], max[1], max[2], -gravity
-    );
-    Scene::from_toml_str(&text, Path::new(".")).expect("report scenes are valid")
+/// A box of lattice spacing `h` from the origin to `max`, under gravity `gravity` along -y.
+fn scene(max: [f64; 3], h: f64, material: Material, gravity: f64, damping: f64) -> SceneBuilder {
+    Scene::builder()
+        .density(DENSITY)
+        .neighbours(NEIGHBOURS)
+        .box_with_spacing([0.0; 3], max, h)
+        .material(material)
+        .dt(1e-3)
+        .gravity([0.0, -gravity, 0.0])
+        .damping(damping)
+        .max_speed(100.0)
 }
 
 /// Builds the case's tissue at `dt_fraction` of its critical step (estimated on the CPU at
@@ -332,42 +330,41 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
     if matches!(case, CaseId::Sphere | CaseId::Column)
         && matches!(model, ModelId::Deb | ModelId::DebCorotated | ModelId::Pba)
     {
-        material.push_str(&format!("\nhourglass = {RESAMPLED_HOURGLASS:e}\n"));
+        material = material.with_hourglass(RESAMPLED_HOURGLASS);
     }
     let floor = model.damping_floor(YOUNG, h);
+    // Fixed below a quarter spacing along an axis: the lattice's first layer.
+    let clamp = |axis| Some(NodeSet::below(axis, 0.25 * h));
     let (gravity, damping, fixed) = match case {
         CaseId::Cantilever => (
             beam_gravity(),
             (2.0 * beam_omega()).max(floor),
-            format!("[[fixed]]\naxis = \"x\"\nbelow = {:e}\n", 0.25 * h),
+            clamp(Axis::X),
         ),
-        CaseId::Frequency => (
-            0.0,
-            floor,
-            format!("[[fixed]]\naxis = \"x\"\nbelow = {:e}\n", 0.25 * h),
-        ),
-        CaseId::Stretch => (0.0, (2.0 * cube_omega(false)).max(floor), String::new()),
-        CaseId::Indentation => (
-            0.0,
-            (2.0 * cube_omega(true)).max(floor),
-            format!("[[fixed]]\naxis = \"y\"\nbelow = {:e}\n", 0.25 * h),
-        ),
-        CaseId::Sphere => (
-            0.0,
-            (2.0 * cube_omega(true)).max(floor),
-            format!(
-                "[[load]]\nsphere = {{ centre = [0.0, 0.0, 0.0], radius = 1.0 }}\npressure = {SPHERE_PRESSURE:e}\n"
-            ),
-        ),
+        CaseId::Frequency => (0.0, floor, clamp(Axis::X)),
+        CaseId::Stretch => (0.0, (2.0 * cube_omega(false)).max(floor), None),
+        CaseId::Indentation => (0.0, (2.0 * cube_omega(true)).max(floor), clamp(Axis::Y)),
+        // Free, under a pressure on its whole surface.
+        CaseId::Sphere => (0.0, (2.0 * cube_omega(true)).max(floor), None),
         // The resampled bottom face's nodes lie on y = 0 (they are projected onto the
         // input surface); interior nodes are at least h / 2 inside it.
         CaseId::Column => (
             COLUMN_GRAVITY,
             (2.0 * cube_omega(true)).max(floor),
-            format!("[[fixed]]\naxis = \"y\"\nbelow = {:e}\n", 0.25 * h),
+            clamp(Axis::Y),
         ),
     };
-    let scene = scene(max, h, &material, gravity, damping, &fixed);
+    let mut scene = scene(max, h, material, gravity, damping);
+    if let Some(set) = fixed {
+        scene = scene.fixed(set);
+    }
+    if case == CaseId::Sphere {
+        scene = scene.load(LoadSpec::pressure(
+            NodeSet::sphere([0.0; 3], 1.0),
+            SPHERE_PRESSURE,
+        ));
+    }
+    let scene = scene.build().expect("report scenes are valid");
     let mut tissue = match case {
         // The scene's box only carries the spacing; the nodes come from the sphere.
         CaseId::Sphere => {

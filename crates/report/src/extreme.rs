@@ -14,9 +14,9 @@ use crate::error::ReportError;
 use needlesim::runner::make_backend;
 use needlesim_core::glam::{Mat3, Quat};
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
-use needlesim_core::{NodeField, Scene, SimError};
+use needlesim_core::scene::{Axis, NodeSet, TimeStep};
+use needlesim_core::{NodeField, Scene, SceneError, SimError};
 use needlesim_needle::{PunctureState, Simulation, SimulationError};
-use std::path::Path;
 
 /// The cases.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,13 +137,12 @@ fn outcome_of(e: SimulationError) -> Outcome {
 }
 
 fn start(
-    text: &str,
+    scene: &Scene,
     prepare: impl FnOnce(&mut needlesim_core::Tissue),
 ) -> Result<Simulation, SimulationError> {
-    let scene = Scene::from_toml_str(text, Path::new("."))?;
-    let mut prep = Simulation::prepare(&scene)?;
+    let mut prep = Simulation::prepare(scene)?;
     prepare(&mut prep.tissue);
-    let backend = make_backend(&scene, prep.tissue.clone(), None, None)
+    let backend = make_backend(scene, prep.tissue.clone(), None, None)
         .map_err(|e| {
             SimulationError::Scene(needlesim_core::SceneError::invalid(
                 "backend",
@@ -154,15 +153,24 @@ fn start(
     prep.start(backend)
 }
 
-fn cube_text(model: ModelId, side: usize, scale: f64, dt: &str, stretch: f64) -> String {
+fn cube_scene(
+    model: ModelId,
+    side: usize,
+    scale: f64,
+    dt: TimeStep,
+    stretch: f64,
+) -> Result<Scene, SceneError> {
     let h = CUBE / (side - 1) as f64;
     let young = YOUNG * scale;
-    format!(
-        "[tissue]\nneighbours = {NEIGHBOURS}\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{CUBE}, {CUBE}, {CUBE}], spacing = {h:e} }}\n\
-         [material]\n{}\n[physics]\ndt = {dt}\ndamping = {:e}\ncheck_every = 50\n[initial]\nstretch = [{stretch}, 1.0, 1.0]\n",
-        model.material(young, h),
-        10.0 + model.damping_floor(young, h)
-    )
+    Scene::builder()
+        .neighbours(NEIGHBOURS)
+        .box_with_spacing([0.0; 3], [CUBE; 3], h)
+        .material(model.material(young, h))
+        .time_step(dt)
+        .damping(10.0 + model.damping_floor(young, h))
+        .check_every(50)
+        .stretch([stretch, 1.0, 1.0])
+        .build()
 }
 
 /// Shape residual after the best-fit rotation, over the cube side.
@@ -227,20 +235,17 @@ fn tissue_case(
         _ => (1.0, 1.0),
     };
     let dt = match case {
-        ExtremeCase::Stiff1000 => "1e-3".to_string(),
+        ExtremeCase::Stiff1000 => TimeStep::Seconds(1e-3),
         ExtremeCase::Dt10x => {
-            let auto = Scene::from_toml_str(
-                &cube_text(model, side, scale, "\"auto\"", stretch),
-                Path::new("."),
-            )?;
+            let auto = cube_scene(model, side, scale, TimeStep::Auto, stretch)?;
             let t = needlesim_core::Tissue::from_scene(&auto)?;
-            format!("{:e}", 10.0 * t.step.dt as f64)
+            TimeStep::Seconds(10.0 * t.step.dt as f64)
         }
-        _ => "\"auto\"".to_string(),
+        _ => TimeStep::Auto,
     };
-    let text = cube_text(model, side, scale, &dt, stretch);
+    let scene = cube_scene(model, side, scale, dt, stretch)?;
     let c = 0.5 * CUBE;
-    let mut sim = start(&text, |t| {
+    let mut sim = start(&scene, |t| {
         for p in t.state.positions[..t.state.n_active].iter_mut() {
             let (x, y, z) = (p[0] as f64 - c, p[1] as f64 - c, p[2] as f64 - c);
             match case {
@@ -271,21 +276,27 @@ fn tissue_case(
     ))
 }
 
+/// The paper's needle (`[needle]`, read by `needlesim-needle`): 15 cm in along +x at
+/// 5 cm/s, turned 25 degrees about z, held.
+const PAPER_NEEDLE: &str = "base = [-0.22, 0.1013, 0.0987]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.2\n\
+    friction = { coefficient = 0.3 }\ncutting = 0.2\n\
+    [[keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.05\nduration = 3.0\n\
+    [[keyframe]]\naction = \"rotate\"\naxis = [0.0, 0.0, 1.0]\npoint = [0.0, 0.1013, 0.0987]\nrate = 25.0\nduration = 1.0\n\
+    [[keyframe]]\naction = \"pause\"\nduration = 0.5\n";
+
 /// The paper's experiment with the report's model and spacing.
-fn paper_text(model: ModelId, h: f64) -> String {
+fn paper_scene(model: ModelId, h: f64) -> Result<Scene, SceneError> {
     let young = YOUNG;
-    format!(
-        "[tissue]\nneighbours = {NEIGHBOURS}\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.2, 0.2, 0.2], spacing = {h:e} }}\n\
-         [material]\n{}\n[physics]\ndt = 1e-3\ndamping = {:e}\ncheck_every = 50\n\
-         [[fixed]]\naxis = \"x\"\nabove = 0.199\n\
-         [needle]\nbase = [-0.22, 0.1013, 0.0987]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.2\n\
-         friction = {{ coefficient = 0.3 }}\ncutting = 0.2\n\
-         [[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.05\nduration = 3.0\n\
-         [[needle.keyframe]]\naction = \"rotate\"\naxis = [0.0, 0.0, 1.0]\npoint = [0.0, 0.1013, 0.0987]\nrate = 25.0\nduration = 1.0\n\
-         [[needle.keyframe]]\naction = \"pause\"\nduration = 0.5\n",
-        model.material(young, h),
-        4.0 + model.damping_floor(young, h)
-    )
+    Scene::builder()
+        .neighbours(NEIGHBOURS)
+        .box_with_spacing([0.0; 3], [0.2; 3], h)
+        .material(model.material(young, h))
+        .dt(1e-3)
+        .damping(4.0 + model.damping_floor(young, h))
+        .check_every(50)
+        .fixed(NodeSet::above(Axis::X, 0.199))
+        .needle_toml(PAPER_NEEDLE)
+        .build()
 }
 
 fn needle_case(
@@ -294,7 +305,7 @@ fn needle_case(
     size: &ExtremeSize,
 ) -> Result<(Outcome, String, u64), SimulationError> {
     let h = size.needle_spacing;
-    let mut sim = start(&paper_text(model, h), |_| {})?;
+    let mut sim = start(&paper_scene(model, h)?, |_| {})?;
     let rest = sim.rest_positions();
     let n_mesh = rest.len();
     let run = |sim: &mut Simulation, n: u64| sim.step_n(n);

@@ -13,7 +13,6 @@ use crate::error::ReportError;
 use needlesim_core::backend::check_bounded;
 use needlesim_core::stability::max_eigenvalue;
 use needlesim_core::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
-use std::path::Path;
 
 /// One point of the map.
 #[derive(Debug, Clone)]
@@ -35,13 +34,14 @@ pub struct StableDt {
 fn cube(model: ModelId, scale: f64, side: usize, dt: f64) -> Result<CpuBackend, ReportError> {
     let h = CUBE / (side - 1) as f64;
     let young = YOUNG * scale;
-    let text = format!(
-        "[tissue]\nneighbours = {NEIGHBOURS}\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [{CUBE}, {CUBE}, {CUBE}], spacing = {h:e} }}\n\
-         [material]\n{}\n[physics]\ndt = {dt:e}\ndamping = {:e}\n",
-        model.material(young, h),
-        model.damping_floor(young, h)
-    );
-    let scene = Scene::from_toml_str(&text, Path::new(".")).expect("valid cube scene");
+    let scene = Scene::builder()
+        .neighbours(NEIGHBOURS)
+        .box_with_spacing([0.0; 3], [CUBE; 3], h)
+        .material(model.material(young, h))
+        .dt(dt)
+        .damping(model.damping_floor(young, h))
+        .build()
+        .expect("valid cube scene");
     let tissue = Tissue::from_scene(&scene).map_err(needlesim::runner::RunError::from)?;
     let mut b =
         CpuBackend::new(tissue, Threading::Parallel).map_err(needlesim::runner::RunError::from)?;

@@ -14,6 +14,7 @@ pub mod resample;
 pub mod sampling;
 pub mod shapes;
 pub mod triangle_bins;
+pub use triangle_bins::segment_triangle;
 
 use crate::error::SceneError;
 use crate::scene::{Geometry, Scene, SurfaceNodes};

@@ -125,7 +125,9 @@ impl TriangleBins {
                         if !seen.insert(t) {
                             continue;
                         }
-                        if let Some(s) = segment_triangle(a, b, &self.triangles[t as usize]) {
+                        if let Some((s, _)) =
+                            segment_triangle(a, b, self.triangles[t as usize], 0.0)
+                        {
                             if best.is_none_or(|b| s < b) {
                                 best = Some(s);
                             }
@@ -138,32 +140,50 @@ impl TriangleBins {
     }
 }
 
-/// Fraction `s` in [0, 1] at which `a + s (b - a)` meets triangle `t`, if it does
-/// (Moeller and Trumbore 1997).
-fn segment_triangle(a: [f64; 3], b: [f64; 3], t: &[[f64; 3]; 3]) -> Option<f64> {
-    let (a, b) = (DVec3::from(a), DVec3::from(b));
-    let [t0, t1, t2] = t.map(DVec3::from);
-    let d = b - a;
-    let e1 = t1 - t0;
-    let e2 = t2 - t0;
-    let p = d.cross(e2);
-    let det = e1.dot(p);
+/// Where the segment `p0 -> p1` crosses triangle `t = [a, b, c]` (Moeller and Trumbore
+/// 1997): `(s, [w_a, w_b, w_c])` with the segment fraction `s` in `[0, 1]` and the hit's
+/// barycentric weights, or `None` (also for a segment in the triangle's plane or a
+/// degenerate triangle). Edges and corners count as inside up to the relative tolerance
+/// `eps` (0: exactly; the needle uses 1e-12 so that a segment through a shared edge or
+/// vertex crosses every triangle around it, which parry's triangle ray cast does not).
+pub fn segment_triangle(
+    p0: [f64; 3],
+    p1: [f64; 3],
+    t: [[f64; 3]; 3],
+    eps: f64,
+) -> Option<(f64, [f64; 3])> {
+    let [a, b, c] = t.map(DVec3::from_array);
+    let p0 = DVec3::from_array(p0);
+    let d = DVec3::from_array(p1) - p0;
+    let e1 = b - a;
+    let e2 = c - a;
+    let h = d.cross(e2);
+    let det = e1.dot(h);
     if det == 0.0 {
         return None;
     }
+    if eps > 0.0 {
+        let scale = (d.length_squared() * e1.length_squared() * e2.length_squared()).sqrt();
+        if det.abs() <= eps * scale {
+            return None;
+        }
+    }
     let inv = 1.0 / det;
-    let s0 = a - t0;
-    let u = s0.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
+    let s = p0 - a;
+    let u = inv * s.dot(h);
+    if !(-eps..=1.0 + eps).contains(&u) {
         return None;
     }
-    let q = s0.cross(e1);
-    let v = d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
+    let q = s.cross(e1);
+    let v = inv * d.dot(q);
+    if v < -eps || u + v > 1.0 + eps {
         return None;
     }
-    let s = e2.dot(q) * inv;
-    (0.0..=1.0).contains(&s).then_some(s)
+    let f = inv * e2.dot(q);
+    if !(-eps..=1.0 + eps).contains(&f) {
+        return None;
+    }
+    Some((f.clamp(0.0, 1.0), [1.0 - u - v, u, v]))
 }
 
 #[cfg(test)]
