@@ -30,6 +30,13 @@ pub fn xyz(p: Vec4) -> Vec3 {
     Vec3::new(p[0], p[1], p[2])
 }
 
+/// Storage boundary, read, in one 16-byte SIMD load: the xyz part of a stored node vector
+/// as `Vec3A` (its operations ignore the w lane and round as `Vec3`'s do).
+#[inline(always)]
+pub fn xyz_a(p: Vec4) -> glam::Vec3A {
+    glam::Vec3A::from_vec4(glam::Vec4::from_array(p))
+}
+
 /// Storage boundary, write: a stored node vector from xyz and the w lane.
 #[inline(always)]
 pub fn with_w(v: Vec3, w: f32) -> Vec4 {

@@ -1071,8 +1071,12 @@ pub struct RunSettings {
     pub max_memory_gib: f64,
 }
 
+/// Default of `run.max_memory_gib`: a fixed 8 GiB (physical memory cannot be asked for
+/// portably); raise it in the scene for larger runs.
+pub const DEFAULT_MAX_MEMORY_GIB: f64 = 8.0;
+
 fn default_max_memory_gib() -> f64 {
-    crate::geometry::memory::DEFAULT_MAX_MEMORY_GIB
+    DEFAULT_MAX_MEMORY_GIB
 }
 
 fn default_steps() -> u64 {

@@ -8,8 +8,8 @@
 //! one sub-cell, so that no node is massless. The estimates are finally scaled to add up
 //! to the enclosed volume, which removes the O(h / s) sampling error of the total.
 
+use super::lattice::Lattice;
 use super::ray_columns::ColumnCrossings;
-use super::sampling::Lattice;
 
 /// Sub-points per lattice spacing along each axis (even, so that no sub-point falls on
 /// the mid-plane between two lattice points).

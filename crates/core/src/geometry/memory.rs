@@ -12,9 +12,7 @@ use crate::scene::{
     DebunneParams, Material, Scene, ShapeMatchingForces, ShapeMatchingParams, DEFAULT_NEIGHBOURS,
 };
 
-/// Default of `run.max_memory_gib`: a fixed 8 GiB (physical memory cannot be asked for
-/// portably); raise it in the scene for larger runs.
-pub const DEFAULT_MAX_MEMORY_GIB: f64 = 8.0;
+pub use crate::scene::DEFAULT_MAX_MEMORY_GIB;
 
 /// Bytes per lattice point while a surface is sampled (inside flags and their regularised
 /// copy, the cube's vertex index, column crossings).

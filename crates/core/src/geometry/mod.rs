@@ -7,6 +7,7 @@
 
 pub mod box_lattice;
 pub mod cell_volume;
+pub mod lattice;
 pub mod memory;
 pub mod obj;
 pub mod ray_columns;
@@ -216,7 +217,7 @@ fn build_with(
                 "tissue.geometry.translate",
                 "move the body near the origin",
             )?;
-            let points = sampling::Lattice::count(lo, hi, g.spacing, 2);
+            let points = lattice::Lattice::count(lo, hi, g.spacing, 2);
             let h = g.spacing;
             // Interior nodes fill the volume at one per h^3; resampled surface nodes sit
             // one per lattice cube the surface crosses, fewer than 3 area / h^2.
@@ -273,7 +274,7 @@ fn build_with(
 /// that belong to no consistent body. A cavity (an inside-out shell within another) is
 /// fine; overlaps thinner than the spacing can be missed.
 fn check_shells(surface: &obj::Surface, h: f64, path: &std::path::Path) -> Result<(), SceneError> {
-    let lattice = sampling::Lattice::covering(&surface.vertices, h, 0);
+    let lattice = lattice::Lattice::covering(&surface.vertices, h, 0);
     let tris: Vec<[[f64; 3]; 3]> = surface
         .triangles
         .iter()

@@ -35,7 +35,7 @@ pub fn resample(surface: &Surface, h: f64, path: &Path) -> Result<NodeCloud, Geo
         .iter()
         .map(|t| t.map(|i| surface.vertices[i as usize]))
         .collect();
-    let lattice = super::sampling::Lattice::covering(&surface.vertices, h, 2);
+    let lattice = super::lattice::Lattice::covering(&surface.vertices, h, 2);
     let dims = lattice.dims;
     let [nx, ny, nz] = dims;
     let inside = ColumnCrossings::inside_grid(&tris, lattice.origin, h, dims);

@@ -4,7 +4,6 @@
 //! shells of cubes around the point's cube outwards and stops once no unsearched cube can
 //! hold a closer triangle, so a point near the surface costs the few triangles around it.
 
-use super::sampling::closest_point_on_triangle;
 use glam::DVec3;
 
 /// Triangles binned in cubes of side `cell`.
@@ -186,6 +185,59 @@ pub fn segment_triangle(
     Some((f.clamp(0.0, 1.0), [1.0 - u - v, u, v]))
 }
 
+/// Distance from `p` to the nearest point of any triangle.
+pub fn distance_to_triangles(p: [f64; 3], triangles: &[[[f64; 3]; 3]]) -> f64 {
+    triangles
+        .iter()
+        .map(|t| DVec3::from(p).distance(closest_point_on_triangle(p, t).into()))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Closest point of triangle `t` to `p` (Voronoi regions of vertices, edges and face).
+pub fn closest_point_on_triangle(p: [f64; 3], t: &[[f64; 3]; 3]) -> [f64; 3] {
+    let p = DVec3::from(p);
+    let [a, b, c] = t.map(DVec3::from);
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a.into();
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b.into();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + ab * v).into();
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c.into();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + ac * w).into();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + (c - b) * w).into();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    (a + (ab * v + ac * w)).into()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -204,7 +256,7 @@ mod tests {
                 x * 0.1 - 0.03
             };
             let p = [r(), r(), r()];
-            let want = super::super::sampling::distance_to_triangles(p, &tris);
+            let want = distance_to_triangles(p, &tris);
             let got = bins.closest(p, f64::INFINITY).unwrap().1;
             assert!((got - want).abs() < 1e-15, "{p:?}: {got} vs {want}");
             assert_eq!(bins.distance_capped(p, 0.004), want.min(0.004));

@@ -87,7 +87,7 @@ pub fn node_volumes(
 ) -> Vec<f32> {
     use crate::scene::NodeVolumes;
     match rule {
-        NodeVolumes::Density => super::point_based::volumes(rest, nb, n, ctx.volume),
+        NodeVolumes::Density => density_volumes(rest, nb, n, ctx.volume),
         NodeVolumes::Cell | NodeVolumes::Uniform => {
             let mut out = vec![0.0f32; rest.len()];
             for (i, v) in out.iter_mut().enumerate().take(n) {
@@ -119,9 +119,7 @@ pub fn added_node_volume(
     scale: f64,
 ) -> f32 {
     match rule {
-        crate::scene::NodeVolumes::Density => {
-            (super::point_based::raw_volume(i, rest, nb) * scale) as f32
-        }
+        crate::scene::NodeVolumes::Density => (raw_volume(i, rest, nb) * scale) as f32,
         _ => scale as f32,
     }
 }
@@ -256,6 +254,33 @@ pub fn gather_force(
         m += w * d0;
     }
     with_w(f + unpack(own) * m, 0.0)
+}
+
+/// Node volumes of the first `n` nodes from Mueller 2004's density estimate, scaled to add up to
+/// `total_volume`; slots `n..capacity` are 0.
+pub fn density_volumes(rest: &[Vec4], nb: &Neighbours, n: usize, total_volume: f64) -> Vec<f32> {
+    let raw: Vec<f64> = (0..n).map(|i| raw_volume(i, rest, nb)).collect();
+    let sum: f64 = raw.iter().sum();
+    let mut out = vec![0.0f32; rest.len()];
+    for i in 0..n {
+        out[i] = if sum > 0.0 {
+            (raw[i] * total_volume / sum) as f32
+        } else {
+            0.0
+        };
+    }
+    out
+}
+
+/// The unscaled density-estimate volume `l_i^3 / (1 + sum_j w_ij)` of node i.
+pub fn raw_volume(i: usize, rest: &[Vec4], nb: &Neighbours) -> f64 {
+    let (mut wsum, mut ell) = (1.0f64, 0.0f64);
+    for (_, j, w) in nb.live(i) {
+        let w = w as f64;
+        wsum += w;
+        ell = ell.max((xyz(rest[j]) - xyz(rest[i])).length() as f64);
+    }
+    ell.powi(3) / wsum
 }
 
 #[cfg(test)]

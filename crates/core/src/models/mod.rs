@@ -346,7 +346,7 @@ impl ShapeInfo {
 
     /// What a node added by the needle needs to get its volume, from the first `n` nodes:
     /// for `density` volumes the factor between the volumes and
-    /// [`point_based::raw_volume`], for `cell` and `uniform` volumes the mean volume (a
+    /// [`mls::raw_volume`], for `cell` and `uniform` volumes the mean volume (a
     /// needle node has no cell of its own); 1 for the models without volumes.
     pub fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
         match self {
@@ -362,9 +362,7 @@ impl ShapeInfo {
             } => {
                 let vol: f64 = rest_position[..n].iter().map(|p| p[3] as f64).sum();
                 let raw: f64 = match volume_rule {
-                    NodeVolumes::Density => {
-                        (0..n).map(|i| point_based::raw_volume(i, rest, nb)).sum()
-                    }
+                    NodeVolumes::Density => (0..n).map(|i| mls::raw_volume(i, rest, nb)).sum(),
                     NodeVolumes::Cell | NodeVolumes::Uniform => n as f64,
                 };
                 if raw > 0.0 {

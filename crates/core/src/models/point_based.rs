@@ -21,36 +21,9 @@
 //! too large a volume: the report's cantilever is 38% too stiff at 1025 nodes with it, 4%
 //! with cell volumes.
 use super::mls::{pack_first_pass, ContinuumConstants};
-use crate::math::{xyz, Vec4};
+use crate::math::Vec4;
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Vec3};
-
-/// Node volumes of the first `n` nodes from the density estimate, scaled to add up to
-/// `total_volume`; slots `n..capacity` are 0.
-pub fn volumes(rest: &[Vec4], nb: &Neighbours, n: usize, total_volume: f64) -> Vec<f32> {
-    let raw: Vec<f64> = (0..n).map(|i| raw_volume(i, rest, nb)).collect();
-    let sum: f64 = raw.iter().sum();
-    let mut out = vec![0.0f32; rest.len()];
-    for i in 0..n {
-        out[i] = if sum > 0.0 {
-            (raw[i] * total_volume / sum) as f32
-        } else {
-            0.0
-        };
-    }
-    out
-}
-
-/// The unscaled density-estimate volume `l_i^3 / (1 + sum_j w_ij)` of node i.
-pub fn raw_volume(i: usize, rest: &[Vec4], nb: &Neighbours) -> f64 {
-    let (mut wsum, mut ell) = (1.0f64, 0.0f64);
-    for (_, j, w) in nb.live(i) {
-        let w = w as f64;
-        wsum += w;
-        ell = ell.max((xyz(rest[j]) - xyz(rest[i])).length() as f64);
-    }
-    ell.powi(3) / wsum
-}
 
 /// `I + J`.
 #[inline(always)]
