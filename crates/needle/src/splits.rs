@@ -138,12 +138,16 @@ pub(crate) fn rest_crossings(
 /// none of the edge-grazing cases of a ray-parity test.
 pub(crate) fn inside_rest_body(rest: &[[f64; 3]], triangles: &[[u32; 3]], p: [f64; 3]) -> bool {
     use parry3d_f64::math::Vector;
-    use parry3d_f64::query::PointQuery;
+    use parry3d_f64::query::PointQueryWithLocation;
     use parry3d_f64::shape::{TriMesh, TriMeshFlags};
     let vertices = rest.iter().map(|&x| Vector::from_array(x)).collect();
-    match TriMesh::with_flags(vertices, triangles.to_vec(), TriMeshFlags::ORIENTED) {
-        Ok(mesh) => mesh.contains_local_point(Vector::from_array(p)),
+    let Ok(mesh) = TriMesh::with_flags(vertices, triangles.to_vec(), TriMeshFlags::ORIENTED) else {
         // No triangles: nothing is inside.
-        Err(_) => false,
-    }
+        return false;
+    };
+    // The projection is `None` when no triangle is within a finite distance (a point or
+    // mesh far past f64's range): such a point is not inside. (`contains_local_point`
+    // would panic there; the parser property tests found it.)
+    mesh.project_local_point_and_get_location_with_max_dist(Vector::from_array(p), true, f64::MAX)
+        .is_some_and(|(projection, _)| projection.is_inside)
 }
