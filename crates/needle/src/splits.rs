@@ -132,22 +132,33 @@ pub(crate) fn rest_crossings(
         .collect()
 }
 
-/// Whether `p` is inside the closed rest surface `triangles` over `rest` (outward,
+/// Whether each of `points` is inside the closed rest surface `triangles` over `rest` (outward,
 /// counter-clockwise winding): parry's point query on the oriented triangle mesh, which
 /// decides by the pseudo-normal of the closest feature (face, edge or vertex) and so has
 /// none of the edge-grazing cases of a ray-parity test.
-pub(crate) fn inside_rest_body(rest: &[[f64; 3]], triangles: &[[u32; 3]], p: [f64; 3]) -> bool {
+pub(crate) fn inside_rest_body(
+    rest: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    points: &[[f64; 3]],
+) -> Vec<bool> {
     use parry3d_f64::math::Vector;
     use parry3d_f64::query::PointQueryWithLocation;
     use parry3d_f64::shape::{TriMesh, TriMeshFlags};
     let vertices = rest.iter().map(|&x| Vector::from_array(x)).collect();
     let Ok(mesh) = TriMesh::with_flags(vertices, triangles.to_vec(), TriMeshFlags::ORIENTED) else {
         // No triangles: nothing is inside.
-        return false;
+        return vec![false; points.len()];
     };
     // The projection is `None` when no triangle is within a finite distance (a point or
     // mesh far past f64's range): such a point is not inside. (`contains_local_point`
     // would panic there; the parser property tests found it.)
-    mesh.project_local_point_and_get_location_with_max_dist(Vector::from_array(p), true, f64::MAX)
+    let inside = |p: [f64; 3]| {
+        mesh.project_local_point_and_get_location_with_max_dist(
+            Vector::from_array(p),
+            true,
+            f64::MAX,
+        )
         .is_some_and(|(projection, _)| projection.is_inside)
+    };
+    points.iter().map(|&p| inside(p)).collect()
 }

@@ -98,16 +98,18 @@ impl Prepared {
     }
 }
 
-/// Errs when the start pose has the tip or the base inside the body (odd crossings of a
-/// ray to far outside) or the shaft crossing its surface, on the rest surface.
+/// Errs when the start pose has the tip or the base inside the body (one oriented-mesh
+/// query for both, [`inside_rest_body`]) or the shaft crossing its surface, on the rest
+/// surface.
 fn check_start_outside(
     rest: &[[f64; 3]],
     triangles: &[[u32; 3]],
     n: &Needle,
 ) -> Result<(), SimulationError> {
     let (base, tip) = (n.base(), n.tip());
-    for (what, p) in [("tip", tip), ("base", base)] {
-        if inside_rest_body(rest, triangles, p) {
+    let inside = inside_rest_body(rest, triangles, &[tip, base]);
+    for ((what, p), inside) in [("tip", tip), ("base", base)].into_iter().zip(inside) {
+        if inside {
             return Err(SimulationError::StartsInside {
                 what,
                 point: p,
