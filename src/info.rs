@@ -89,6 +89,12 @@ impl SceneInfo {
     pub fn total_bytes(&self) -> usize {
         self.arrays.iter().map(|a| a.bytes).sum()
     }
+
+    /// Bytes per allocated node (all arrays over the capacity, which includes the room
+    /// kept for needle nodes): what one more node of this model and K costs.
+    pub fn bytes_per_node(&self) -> f64 {
+        self.total_bytes() as f64 / self.capacity.max(1) as f64
+    }
 }
 
 impl fmt::Display for SceneInfo {
@@ -137,6 +143,13 @@ impl fmt::Display for SceneInfo {
         for a in &self.arrays {
             writeln!(f, "  {:<18} {:>12} bytes", a.name, a.bytes)?;
         }
-        write!(f, "  {:<18} {:>12} bytes", "total", self.total_bytes())
+        writeln!(f, "  {:<18} {:>12} bytes", "total", self.total_bytes())?;
+        write!(
+            f,
+            "  {:<18} {:>12.1} bytes ({} allocated nodes)",
+            "per node",
+            self.bytes_per_node(),
+            self.capacity
+        )
     }
 }

@@ -42,3 +42,30 @@ pub fn xyz_a(p: Vec4) -> glam::Vec3A {
 pub fn with_w(v: Vec3, w: f32) -> Vec4 {
     [v.x, v.y, v.z, w]
 }
+
+/// The x, y, z and w lanes (the columns of the result) of the four nodes `j` of `array`:
+/// one load per node and a 4x4 transpose, for kernels that work on four neighbour slots
+/// at once.
+#[inline(always)]
+pub fn gather4(array: &[Vec4], j: [usize; 4]) -> glam::Mat4 {
+    glam::Mat4::from_cols_array_2d(&[array[j[0]], array[j[1]], array[j[2]], array[j[3]]])
+        .transpose()
+}
+
+/// Lane-wise square root: `sqrtps` on x86-64 (glam's `Vec4::sqrt` takes four scalar roots
+/// there), glam's elsewhere.
+#[inline(always)]
+pub fn sqrt4(v: glam::Vec4) -> glam::Vec4 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    {
+        // SAFETY: SSE2 is part of the x86-64 baseline (and required by the cfg).
+        #[allow(unused_unsafe)]
+        unsafe {
+            glam::Vec4::from(std::arch::x86_64::_mm_sqrt_ps(v.into()))
+        }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+    {
+        v.sqrt()
+    }
+}

@@ -8,7 +8,7 @@
 
 use needlesim::core::scene::BackendChoice;
 use needlesim::needle::{Checkpoint, PunctureState, SceneText, Simulation, SimulationError};
-use needlesim::{make_backend, NodeField, RunError, Scene};
+use needlesim::{make_backend, NodeField, RunError, Scene, Tissue};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -178,6 +178,9 @@ impl PySimulation {
         rows(py, flat, 3)
     }
 }
+
+/// Neighbour index and weight rows, both (n, K).
+type NeighbourRows<'py> = (Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f32>>);
 
 /// Vertices (m, 3) and faces (t, 3).
 type Mesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
@@ -425,6 +428,22 @@ impl PySimulation {
     #[getter]
     fn masses<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_vec(py, self.masses.clone())
+    }
+
+    /// The mesh's neighbour lists as the scene builds them: `(index, weight)`, both of
+    /// shape (mesh_nodes, K); index is int64, weight float32 and 0 marks an empty or broken
+    /// slot (the mutuality rule). Rebuilt from the scene on each call, so the rows the
+    /// needle edits during a run and the nodes it adds are not included.
+    fn neighbours<'py>(&self, py: Python<'py>) -> PyResult<NeighbourRows<'py>> {
+        let parsed = self.scene.scene().map_err(value_error)?;
+        let tissue = Tissue::from_scene(&parsed).map_err(value_error)?;
+        let (n, k) = (tissue.n_mesh, tissue.neighbours.k);
+        let index = tissue.neighbours.index[..n * k]
+            .iter()
+            .map(|&j| j as i64)
+            .collect();
+        let weight = tissue.neighbours.weight[..n * k].to_vec();
+        Ok((rows(py, index, k)?, rows(py, weight, k)?))
     }
 
     /// Every step's needle record as numpy arrays: step, time, depth (m past the first

@@ -80,6 +80,9 @@ class Simulation:
     @property
     def masses(self) -> npt.NDArray[np.float64]:
         """(mesh_nodes,) node masses in kg (density times cell volume by default)."""
+    def neighbours(self) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32]]:
+        """(index, weight), both (mesh_nodes, K): the mesh's neighbour lists as the scene
+        builds them (weight 0 marks an empty or broken slot; needle edits not included)."""
     def reactions(self) -> Dict[str, npt.NDArray[np.float64]]:
         """{set name: (3,) force in N} that each [[fixed]] / [[prescribed]] set exerts on
         the body, from the last step's forces."""
