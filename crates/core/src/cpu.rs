@@ -96,6 +96,33 @@ impl CpuBackend {
     }
 }
 
+/// Runs `f(first, &mut a[chunk], &mut b[chunk])` over consecutive chunks of [`CHUNK`]
+/// nodes, serially or in parallel.
+fn for_each_chunk<A: Send, B: Send>(
+    pool: Option<&rayon::ThreadPool>,
+    parallel: bool,
+    a: &mut [A],
+    b: &mut [B],
+    f: impl Fn(usize, &mut [A], &mut [B]) + Sync + Send,
+) {
+    if !parallel {
+        for (c, (ca, cb)) in a.chunks_mut(CHUNK).zip(b.chunks_mut(CHUNK)).enumerate() {
+            f(c * CHUNK, ca, cb);
+        }
+        return;
+    }
+    let mut job = move || {
+        a.par_chunks_mut(CHUNK)
+            .zip(b.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, (ca, cb))| f(c * CHUNK, ca, cb))
+    };
+    match pool {
+        Some(p) => p.install(job),
+        None => job(),
+    }
+}
+
 /// Runs `f(i, &mut a[i], &mut b[i])` for every node, serially or in parallel chunks.
 fn for_each_node<A: Send, B: Send>(
     pool: Option<&rayon::ThreadPool>,
@@ -104,26 +131,11 @@ fn for_each_node<A: Send, B: Send>(
     b: &mut [B],
     f: impl Fn(usize, &mut A, &mut B) + Sync + Send,
 ) {
-    if !parallel {
-        for (i, (x, y)) in a.iter_mut().zip(b.iter_mut()).enumerate() {
-            f(i, x, y);
+    for_each_chunk(pool, parallel, a, b, |first, ca, cb| {
+        for (k, (x, y)) in ca.iter_mut().zip(cb.iter_mut()).enumerate() {
+            f(first + k, x, y);
         }
-        return;
-    }
-    let mut job = move || {
-        a.par_chunks_mut(CHUNK)
-            .zip(b.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(c, (ca, cb))| {
-                for (k, (x, y)) in ca.iter_mut().zip(cb.iter_mut()).enumerate() {
-                    f(c * CHUNK + k, x, y);
-                }
-            })
-    };
-    match pool {
-        Some(p) => p.install(job),
-        None => job(),
-    }
+    });
 }
 
 /// Sets `out[i] = f(i)` for every node, serially or in parallel chunks.
@@ -199,14 +211,14 @@ impl Backend for CpuBackend {
                 let (rest, sv) = (&rest_position[..], &shape_vector[..]);
                 match cluster_centre {
                     None => {
-                        for_each_node(
+                        for_each_chunk(
                             pool,
                             self.parallel,
                             forces,
                             &mut rotation[..n],
-                            |i, f, q| {
-                                *f = local_shape_matching::node_force(
-                                    i, pos, rest, sv[i], nb, k, iters, q,
+                            |first, f, q| {
+                                local_shape_matching::node_forces(
+                                    first, f, q, pos, rest, sv, nb, k, iters,
                                 );
                             },
                         );

@@ -31,7 +31,7 @@
 //! the `cluster` variant adds `cluster_centre` (c_i of the current step).
 //! The paper's Table 1 lists only v; A cannot be formed without the rest positions.
 
-use super::mueller2016_rotation::extract_rotation;
+use super::mueller2016_rotation::{extract_rotation, extract_rotation4};
 use crate::math::{gather4, with_w, xyz, Vec4};
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Quat, Vec3, Vec4 as Lanes4};
@@ -170,6 +170,19 @@ pub fn cluster_frame(
     iterations: u32,
     rotation: Quat,
 ) -> (Vec3, Quat) {
+    let (c, a) = cluster_matrix(i, positions, rest, shape_vector, nb);
+    (c, extract_rotation(&a, rotation, iterations))
+}
+
+/// Centre offset `c_i` and the scaled matrix `A_i` whose rotation [`cluster_frame`] takes.
+#[inline(always)]
+fn cluster_matrix(
+    i: usize,
+    positions: &[Vec4],
+    rest: &[Vec4],
+    shape_vector: Vec4,
+    nb: &Neighbours,
+) -> (Vec3, Mat3) {
     // One pass over the cluster: with offsets d_j = x_j - x_i and d0_j = x0_j - x0_i
     // (the node itself has d = d0 = 0, weight 1),
     // A = sum w (d - c)(d0 - c0)^T = sum w d d0^T - c (sum w d0)^T.
@@ -185,8 +198,50 @@ pub fn cluster_frame(
     // sum w |d0 - c0|^2 = sum w |d0|^2 - 2 c0 . sum w d0 + W |c0|^2
     let scale = sdd0 - 2.0 * c0.dot(sd0) + wsum * c0.dot(c0);
     let inv = if scale > 0.0 { 1.0 / scale } else { 1.0 };
-    let a = (m - outer(c, sd0)) * inv;
-    (c, extract_rotation(&a, rotation, iterations))
+    (c, (m - outer(c, sd0)) * inv)
+}
+
+/// [`node_force`] for the nodes `first..first + forces.len()`, four at a time: each node's
+/// sums and matrix as in [`cluster_frame`], then one [`extract_rotation4`] for the four
+/// (the last group padded with copies of its first node, whose extra lanes are dropped).
+/// Each node's result depends only on its own cluster, so any chunking of the nodes gives
+/// the same bits.
+#[allow(clippy::too_many_arguments)]
+pub fn node_forces(
+    first: usize,
+    forces: &mut [Vec4],
+    rotations: &mut [Vec4],
+    positions: &[Vec4],
+    rest: &[Vec4],
+    shape_vectors: &[Vec4],
+    nb: &Neighbours,
+    stiffness: f32,
+    iterations: u32,
+) {
+    for (g, (f4, q4)) in forces
+        .chunks_mut(4)
+        .zip(rotations.chunks_mut(4))
+        .enumerate()
+    {
+        let base = first + 4 * g;
+        let node = |lane: usize| base + lane.min(f4.len() - 1);
+        let frames: [(Vec3, Mat3); 4] = std::array::from_fn(|lane| {
+            cluster_matrix(node(lane), positions, rest, shape_vectors[node(lane)], nb)
+        });
+        let a = std::array::from_fn(|r| {
+            std::array::from_fn(|c| Lanes4::from_array(frames.map(|(_, m)| m.col(c)[r])))
+        });
+        let q = std::array::from_fn(|e| {
+            Lanes4::from_array(std::array::from_fn(|lane| q4[lane.min(q4.len() - 1)][e]))
+        });
+        let q = extract_rotation4(&a, q, iterations).map(|v| v.to_array());
+        for lane in 0..f4.len() {
+            let r = Quat::from_xyzw(q[0][lane], q[1][lane], q[2][lane], q[3][lane]);
+            let sv = xyz(shape_vectors[base + lane]);
+            q4[lane] = r.to_array();
+            f4[lane] = with_w(stiffness * (frames[lane].0 + quat_rotate(r, sv)), 0.0);
+        }
+    }
 }
 
 /// The outer product `u v^T`.
@@ -323,6 +378,65 @@ mod tests {
                 let plain = cluster_sums::<false>(i, &pos, &rest, &nb);
                 assert_eq!((plain.sd, plain.wsum), (got.sd, got.wsum));
             }
+        }
+    }
+
+    /// The four-node path gives each node what the one-node path gives (to f32 round-off
+    /// of the rotation's different operation order), for node counts that leave a partial
+    /// last group, and the same bits whatever the chunking.
+    #[test]
+    fn node_forces_match_node_force() {
+        let mut seed = 0x1234_5678_9abc_def1u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let n = 23;
+        let k = 6;
+        let rest: Vec<Vec4> = (0..n).map(|_| [rnd(), rnd(), rnd(), 1.0]).collect();
+        let pos: Vec<Vec4> = rest
+            .iter()
+            .map(|r| [1.2 * r[0] + 0.05 * rnd(), r[1] - 0.3 * r[0], r[2], 1.0])
+            .collect();
+        let index: Vec<u32> = (0..n * k)
+            .map(|s| ((s / k + 1 + s % k) % n) as u32)
+            .collect();
+        let weight: Vec<f32> = (0..n * k).map(|_| 0.2 + rnd()).collect();
+        let nb = Neighbours { k, index, weight };
+        let sv: Vec<Vec4> = (0..n).map(|i| shape_vector(i, &rest, &nb)).collect();
+        let start = Quat::from_axis_angle(Vec3::Z, 0.1).to_array();
+        let mut f = vec![[0.0; 4]; n];
+        let mut q = vec![start; n];
+        node_forces(0, &mut f, &mut q, &pos, &rest, &sv, &nb, 50.0, 4);
+        let (mut f2, mut q2) = (vec![[0.0; 4]; n], vec![start; n]);
+        for (first, len) in [(0, 5), (5, 9), (14, 9)] {
+            let r = first..first + len;
+            node_forces(
+                first,
+                &mut f2[r.clone()],
+                &mut q2[r],
+                &pos,
+                &rest,
+                &sv,
+                &nb,
+                50.0,
+                4,
+            );
+        }
+        assert_eq!((&f, &q), (&f2, &q2), "chunking changed the bits");
+        for i in 0..n {
+            let mut qi = start;
+            let fi = node_force(i, &pos, &rest, sv[i], &nb, 50.0, 4, &mut qi);
+            let scale = 50.0 * xyz(fi).length().max(1e-3);
+            for c in 0..3 {
+                assert!(
+                    (f[i][c] - fi[c]).abs() < 1e-4 * scale,
+                    "node {i}: {f:?} vs {fi:?}"
+                );
+            }
+            assert!((0..4).all(|e| (q[i][e] - qi[e]).abs() < 1e-5), "node {i}");
         }
     }
 }

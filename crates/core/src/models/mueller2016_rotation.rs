@@ -14,7 +14,8 @@
 //! match the WGSL `extract_rotation` step for step, with one quaternion per node and no
 //! sine or cosine per iteration.
 
-use glam::{Mat3, Quat, Vec3};
+use crate::math::sqrt4;
+use glam::{Mat3, Quat, Vec3, Vec4 as Lanes4};
 
 /// Stop when the rotation update is below this angle, in radians (about ten f32 ulps of a
 /// unit matrix entry; smaller updates are round-off).
@@ -48,6 +49,61 @@ pub fn extract_rotation(a: &Mat3, mut q: Quat, iterations: u32) -> Quat {
     q
 }
 
+/// [`extract_rotation`] for four independent matrices at once, one per lane: `a[r][c]`
+/// holds entry (row r, column c) of each lane's matrix and `q` its warm start as
+/// `[x, y, z, w]` lanes. A lane stops where the scalar iteration would (update below
+/// [`ANGLE_TOLERANCE`] or not a number) and keeps its quaternion while the others go on,
+/// so each lane's result depends on its own inputs only, never on which lanes it shares.
+/// The four dependency chains (square roots and divisions) overlap instead of running one
+/// after the other.
+#[inline]
+pub fn extract_rotation4(a: &[[Lanes4; 3]; 3], q: [Lanes4; 4], iterations: u32) -> [Lanes4; 4] {
+    let [mut x, mut y, mut z, mut w] = q;
+    let (zero, one, half) = (Lanes4::ZERO, Lanes4::ONE, Lanes4::splat(0.5));
+    let tol = Lanes4::splat(ANGLE_TOLERANCE);
+    let mut active = Lanes4::ONE.cmpeq(one);
+    for _ in 0..iterations {
+        // R(q), glam's Mat3::from_quat, as columns r[c][row].
+        let (x2, y2, z2) = (x + x, y + y, z + z);
+        let (xx, xy, xz) = (x * x2, x * y2, x * z2);
+        let (yy, yz, zz) = (y * y2, y * z2, z * z2);
+        let (wx, wy, wz) = (w * x2, w * y2, w * z2);
+        let r = [
+            [one - (yy + zz), xy + wz, xz - wy],
+            [xy - wz, one - (xx + zz), yz + wx],
+            [xz + wy, yz - wx, one - (xx + yy)],
+        ];
+        let (mut ox, mut oy, mut oz, mut d) = (zero, zero, zero, zero);
+        for (c, rc) in r.iter().enumerate() {
+            let ac = [a[0][c], a[1][c], a[2][c]];
+            ox += rc[1] * ac[2] - rc[2] * ac[1];
+            oy += rc[2] * ac[0] - rc[0] * ac[2];
+            oz += rc[0] * ac[1] - rc[1] * ac[0];
+            d += rc[0] * ac[0] + rc[1] * ac[1] + rc[2] * ac[2];
+        }
+        let s = one / (d.abs() + Lanes4::splat(1e-9));
+        let (ox, oy, oz) = (ox * s, oy * s, oz * s);
+        let angle = sqrt4(ox * ox + oy * oy + oz * oz);
+        // NaN compares false: a lane whose angle is not a number stops, as in the scalar.
+        active &= angle.cmpge(tol);
+        if !active.any() {
+            break;
+        }
+        // p = (omega / 2, 1) * q, then normalised.
+        let (px, py, pz) = (half * ox, half * oy, half * oz);
+        let nx = w * px + x + (py * z - pz * y);
+        let ny = w * py + y + (pz * x - px * z);
+        let nz = w * pz + z + (px * y - py * x);
+        let nw = w - (px * x + py * y + pz * z);
+        let len = sqrt4(nx * nx + ny * ny + nz * nz + nw * nw);
+        x = Lanes4::select(active, nx / len, x);
+        y = Lanes4::select(active, ny / len, y);
+        z = Lanes4::select(active, nz / len, z);
+        w = Lanes4::select(active, nw / len, w);
+    }
+    [x, y, z, w]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -74,5 +130,53 @@ mod tests {
         assert!((q.length() - 1.0).abs() < 1e-5 && q.is_finite());
         let v = Mat3::from_quat(q) * Vec3::X;
         assert!((v.x - 1.0).abs() < 1e-4, "x axis must map to itself: {v:?}");
+    }
+
+    /// Four lanes against four scalar extractions: rotated stretches of growing size,
+    /// warm starts near and far, and a collapsed matrix; the quaternions agree to f32
+    /// round-off of the different operation order (1e-5), each lane alone or in company.
+    #[test]
+    fn four_lanes_match_the_scalar_iteration() {
+        let mats: Vec<Mat3> = (0..8)
+            .map(|k| {
+                let axis = Vec3::new(0.3 + k as f32, -0.5, 0.8).normalize();
+                let r = Mat3::from_quat(Quat::from_axis_angle(axis, 0.3 * k as f32));
+                let s = Mat3::from_cols_array_2d(&[
+                    [1.0 + 0.1 * k as f32, 0.1, 0.0],
+                    [0.1, 0.8, 0.05],
+                    [0.0, 0.05, 1.1],
+                ]);
+                if k == 5 {
+                    Mat3::ZERO
+                } else {
+                    r * s
+                }
+            })
+            .collect();
+        let starts: Vec<Quat> = (0..8)
+            .map(|k| Quat::from_axis_angle(Vec3::Y, 0.2 * k as f32 - 0.5))
+            .collect();
+        for iterations in [1, 4, 20] {
+            for group in [[0, 1, 2, 3], [4, 5, 6, 7], [5, 5, 0, 7]] {
+                let a: [[Lanes4; 3]; 3] = std::array::from_fn(|r| {
+                    std::array::from_fn(|c| Lanes4::from_array(group.map(|m| mats[m].col(c)[r])))
+                });
+                let q: [Lanes4; 4] = std::array::from_fn(|e| {
+                    Lanes4::from_array(group.map(|m| starts[m].to_array()[e]))
+                });
+                let got = extract_rotation4(&a, q, iterations);
+                for (lane, &m) in group.iter().enumerate() {
+                    let want = extract_rotation(&mats[m], starts[m], iterations).to_array();
+                    for e in 0..4 {
+                        let g = got[e].to_array()[lane];
+                        assert!(
+                            (g - want[e]).abs() < 1e-5,
+                            "matrix {m}, {iterations} iterations: {g} vs {}",
+                            want[e]
+                        );
+                    }
+                }
+            }
+        }
     }
 }
