@@ -14,12 +14,20 @@ use crate::scene::{
     DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
 };
 use crate::tissue::Tissue;
-use glam::{Mat3, Quat};
+use glam::Mat3;
 use rayon::prelude::*;
 use std::ops::Range;
 
 /// Nodes per parallel work item.
 const CHUNK: usize = 256;
+
+/// Below this many active nodes a multi-threaded backend steps on the calling thread: a
+/// step is then tens of microseconds, about what waking the pool costs. Measured on the
+/// 2-core development machine (mass-spring / shape matching, ms per step, 1 vs 2 threads):
+/// 216 nodes 0.012 vs 0.068; 729 nodes 0.041 vs 0.048-0.089 and 0.10 vs 0.09; 1,728
+/// nodes 0.08-0.09 vs 0.08-0.09 and 0.19-0.22 vs 0.18-0.19. Results do not depend on it
+/// (each node's arithmetic is the same on any thread).
+pub const PARALLEL_MIN_NODES: usize = 1024;
 
 /// How the CPU backend uses threads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -175,6 +183,7 @@ impl Backend for CpuBackend {
         let t = &mut self.tissue;
         let n = t.state.n_active;
         let pool = self.pool.as_ref();
+        let parallel = self.parallel && n >= PARALLEL_MIN_NODES;
         let nb = &t.neighbours;
         let pos = &t.state.positions;
         let vel = &t.state.velocities;
@@ -190,7 +199,7 @@ impl Backend for CpuBackend {
             ) => {
                 let (k, c) = (*stiffness as f32, *spring_damping as f32);
                 let rest_length = &rest_length[..];
-                map_nodes(pool, self.parallel, forces, |i| {
+                map_nodes(pool, parallel, forces, |i| {
                     mass_spring::force(i, pos, vel, nb, rest_length, k, c)
                 });
             }
@@ -213,7 +222,7 @@ impl Backend for CpuBackend {
                     None => {
                         for_each_chunk(
                             pool,
-                            self.parallel,
+                            parallel,
                             forces,
                             &mut rotation[..n],
                             |first, f, q| {
@@ -224,27 +233,28 @@ impl Backend for CpuBackend {
                         );
                     }
                     Some(centre) => {
-                        for_each_node(
+                        for_each_chunk(
                             pool,
-                            self.parallel,
+                            parallel,
                             &mut centre[..n],
                             &mut rotation[..n],
-                            |i, c, q| {
-                                let (c_i, q_i) = local_shape_matching::cluster_frame(
-                                    i,
+                            |first, c, q| {
+                                local_shape_matching::cluster_frames(
+                                    first,
+                                    q,
                                     pos,
                                     rest,
-                                    sv[i],
+                                    sv,
                                     nb,
                                     iters,
-                                    Quat::from_array(*q),
+                                    |k, c_k, _| {
+                                        c[k] = with_w(c_k, 0.0);
+                                    },
                                 );
-                                *c = with_w(c_i, 0.0);
-                                *q = q_i.to_array();
                             },
                         );
                         let (centre, rotation) = (&centre[..], &rotation[..]);
-                        map_nodes(pool, self.parallel, forces, |j| {
+                        map_nodes(pool, parallel, forces, |j| {
                             local_shape_matching::cluster_force(
                                 j, pos, rest, sv, nb, k, centre, rotation,
                             )
@@ -270,7 +280,7 @@ impl Backend for CpuBackend {
                 let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
                 match corotation {
                     None => {
-                        map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
+                        map_nodes(pool, parallel, &mut first_pass[..n], |i| {
                             debunne_meshfree::first_pass(
                                 i, pos, rest, nb, &a_inv[i], rest[i][3], lambda, mu, hg, None,
                             )
@@ -281,40 +291,42 @@ impl Backend for CpuBackend {
                         rotation,
                     }) => {
                         let (sv, iters) = (&shape_vector[..], *rotation_iterations);
-                        for_each_node(
+                        for_each_chunk(
                             pool,
-                            self.parallel,
+                            parallel,
                             &mut first_pass[..n],
                             &mut rotation[..n],
-                            |i, q, rot| {
-                                let (_, r) = local_shape_matching::cluster_frame(
-                                    i,
+                            |first, out, q| {
+                                local_shape_matching::cluster_frames(
+                                    first,
+                                    q,
                                     pos,
                                     rest,
-                                    sv[i],
+                                    sv,
                                     nb,
                                     iters,
-                                    Quat::from_array(*rot),
-                                );
-                                *rot = r.to_array();
-                                *q = debunne_meshfree::first_pass(
-                                    i,
-                                    pos,
-                                    rest,
-                                    nb,
-                                    &a_inv[i],
-                                    rest[i][3],
-                                    lambda,
-                                    mu,
-                                    hg,
-                                    Some(&Mat3::from_quat(r)),
+                                    |k, _, r| {
+                                        let i = first + k;
+                                        out[k] = debunne_meshfree::first_pass(
+                                            i,
+                                            pos,
+                                            rest,
+                                            nb,
+                                            &a_inv[i],
+                                            rest[i][3],
+                                            lambda,
+                                            mu,
+                                            hg,
+                                            Some(&Mat3::from_quat(r)),
+                                        );
+                                    },
                                 );
                             },
                         );
                     }
                 }
                 let first = &first_pass[..];
-                map_nodes(pool, self.parallel, forces, |i| {
+                map_nodes(pool, parallel, forces, |i| {
                     mls::gather_force(i, pos, rest, nb, first)
                 });
             }
@@ -329,11 +341,11 @@ impl Backend for CpuBackend {
             ) => {
                 let c = mls::ContinuumConstants::of(&t.material).expect("point based material");
                 let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
-                map_nodes(pool, self.parallel, &mut first_pass[..n], |i| {
+                map_nodes(pool, parallel, &mut first_pass[..n], |i| {
                     point_based::first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
                 });
                 let first = &first_pass[..];
-                map_nodes(pool, self.parallel, forces, |i| {
+                map_nodes(pool, parallel, forces, |i| {
                     mls::gather_force(i, pos, rest, nb, first)
                 });
             }
@@ -348,7 +360,7 @@ impl Backend for CpuBackend {
         let forces = &t.state.forces;
         for_each_node(
             self.pool.as_ref(),
-            self.parallel,
+            self.parallel && n >= PARALLEL_MIN_NODES,
             &mut t.state.positions[..n],
             &mut t.state.velocities[..n],
             |i, x, v| integrate_node(x, v, forces[i], &params),

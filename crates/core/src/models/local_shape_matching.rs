@@ -201,11 +201,47 @@ fn cluster_matrix(
     (c, (m - outer(c, sd0)) * inv)
 }
 
-/// [`node_force`] for the nodes `first..first + forces.len()`, four at a time: each node's
-/// sums and matrix as in [`cluster_frame`], then one [`extract_rotation4`] for the four
-/// (the last group padded with copies of its first node, whose extra lanes are dropped).
-/// Each node's result depends only on its own cluster, so any chunking of the nodes gives
-/// the same bits.
+/// [`cluster_frame`] for the nodes `first..first + rotations.len()`, four at a time:
+/// each node's sums and matrix, then one [`extract_rotation4`] for the four (the last
+/// group padded with copies of its first node, whose extra lanes are dropped). Updates
+/// each warm-start quaternion in `rotations` and calls `each(k, c, R)` for node
+/// `first + k`. Each node's result depends only on its own cluster, so any chunking of the
+/// nodes gives the same bits.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub fn cluster_frames(
+    first: usize,
+    rotations: &mut [Vec4],
+    positions: &[Vec4],
+    rest: &[Vec4],
+    shape_vectors: &[Vec4],
+    nb: &Neighbours,
+    iterations: u32,
+    mut each: impl FnMut(usize, Vec3, Quat),
+) {
+    for (g, q4) in rotations.chunks_mut(4).enumerate() {
+        let base = first + 4 * g;
+        let lane_node = |lane: usize| lane.min(q4.len() - 1);
+        let frames: [(Vec3, Mat3); 4] = std::array::from_fn(|lane| {
+            let i = base + lane_node(lane);
+            cluster_matrix(i, positions, rest, shape_vectors[i], nb)
+        });
+        let a = std::array::from_fn(|r| {
+            std::array::from_fn(|c| Lanes4::from_array(frames.map(|(_, m)| m.col(c)[r])))
+        });
+        let q = std::array::from_fn(|e| {
+            Lanes4::from_array(std::array::from_fn(|lane| q4[lane_node(lane)][e]))
+        });
+        let q = extract_rotation4(&a, q, iterations).map(|v| v.to_array());
+        for (lane, stored) in q4.iter_mut().enumerate() {
+            let r = Quat::from_xyzw(q[0][lane], q[1][lane], q[2][lane], q[3][lane]);
+            *stored = r.to_array();
+            each(4 * g + lane, frames[lane].0, r);
+        }
+    }
+}
+
+/// [`node_force`] for the nodes `first..first + forces.len()` through [`cluster_frames`].
 #[allow(clippy::too_many_arguments)]
 pub fn node_forces(
     first: usize,
@@ -218,30 +254,19 @@ pub fn node_forces(
     stiffness: f32,
     iterations: u32,
 ) {
-    for (g, (f4, q4)) in forces
-        .chunks_mut(4)
-        .zip(rotations.chunks_mut(4))
-        .enumerate()
-    {
-        let base = first + 4 * g;
-        let node = |lane: usize| base + lane.min(f4.len() - 1);
-        let frames: [(Vec3, Mat3); 4] = std::array::from_fn(|lane| {
-            cluster_matrix(node(lane), positions, rest, shape_vectors[node(lane)], nb)
-        });
-        let a = std::array::from_fn(|r| {
-            std::array::from_fn(|c| Lanes4::from_array(frames.map(|(_, m)| m.col(c)[r])))
-        });
-        let q = std::array::from_fn(|e| {
-            Lanes4::from_array(std::array::from_fn(|lane| q4[lane.min(q4.len() - 1)][e]))
-        });
-        let q = extract_rotation4(&a, q, iterations).map(|v| v.to_array());
-        for lane in 0..f4.len() {
-            let r = Quat::from_xyzw(q[0][lane], q[1][lane], q[2][lane], q[3][lane]);
-            let sv = xyz(shape_vectors[base + lane]);
-            q4[lane] = r.to_array();
-            f4[lane] = with_w(stiffness * (frames[lane].0 + quat_rotate(r, sv)), 0.0);
-        }
-    }
+    cluster_frames(
+        first,
+        rotations,
+        positions,
+        rest,
+        shape_vectors,
+        nb,
+        iterations,
+        |k, c, r| {
+            let sv = xyz(shape_vectors[first + k]);
+            forces[k] = with_w(stiffness * (c + quat_rotate(r, sv)), 0.0);
+        },
+    );
 }
 
 /// The outer product `u v^T`.
