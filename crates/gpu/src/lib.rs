@@ -22,6 +22,8 @@
 mod backend;
 mod context;
 pub mod kernels;
+mod profile;
 
 pub use backend::{largest_buffer, Buffers, GpuBackend};
 pub use context::{GpuContext, GpuError};
+pub use profile::KernelTime;
