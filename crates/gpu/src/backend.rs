@@ -314,7 +314,7 @@ impl GpuBackend {
             }
             return;
         };
-        let per_step = (kernels().count()) as u64;
+        let per_step = kernels().count() as u64;
         profiler.reserve(&self.ctx.device, steps * per_step, &self.readbacks);
         for _ in 0..steps {
             for (id, p) in kernels() {
