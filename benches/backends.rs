@@ -5,14 +5,66 @@
 //! Sizes: `NEEDLESIM_BENCH_SIZES` (comma-separated target node counts, default
 //! `639,10932`); the full set is `639,10932,100000,1000000` (building the 1M cube
 //! takes about a minute on 2 cores). Models: `NEEDLESIM_BENCH_MODELS` (default all).
+//!
+//! After the group, a table of GPU time per kernel (timestamp queries, where the device
+//! has them) over [`PROFILED_STEPS`] batched steps of each model and size, run apart from
+//! the timed benches.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use needlesim::gpu::GpuBackend;
+use needlesim::gpu::{GpuBackend, KernelTime};
 use needlesim::{Backend, CpuBackend, NodeField, Threading, Tissue};
 use std::time::Instant;
 
 mod common;
 use common::{cube, MODELS};
+
+/// Steps of the profiled run per model and size.
+const PROFILED_STEPS: u64 = 200;
+
+/// The summary rows: model, nodes, and the kernel times (or why there are none).
+type Profile = (&'static str, usize, Result<Vec<KernelTime>, String>);
+
+/// [`PROFILED_STEPS`] batched steps of `g` with kernel timing on.
+fn profile(g: &mut GpuBackend) -> Result<Vec<KernelTime>, String> {
+    g.enable_profiling(true).map_err(|e| e.to_string())?;
+    g.reset_kernel_times();
+    g.step(PROFILED_STEPS);
+    let times = g.kernel_times().map_err(|e| e.to_string());
+    g.enable_profiling(false).map_err(|e| e.to_string())?;
+    times
+}
+
+fn print_profiles(rows: &[Profile]) {
+    if rows.is_empty() {
+        return;
+    }
+    eprintln!("\nGPU time per kernel, {PROFILED_STEPS} batched steps (timestamp queries):");
+    eprintln!(
+        "{:<14} {:>8}  {:<36} {:>10} {:>10} {:>10}",
+        "model", "nodes", "kernel", "dispatches", "total ms", "mean ms"
+    );
+    for (label, nodes, times) in rows {
+        match times {
+            Ok(times) => {
+                for t in times {
+                    eprintln!(
+                        "{label:<14} {nodes:>8}  {:<36} {:>10} {:>10.3} {:>10.4}",
+                        t.name, t.dispatches, t.total_ms, t.mean_ms
+                    );
+                }
+                let sum: f64 = times.iter().map(|t| t.total_ms).sum();
+                eprintln!(
+                    "{label:<14} {nodes:>8}  {:<36} {:>10} {:>10.3} {:>10.4}",
+                    "(per step)",
+                    "",
+                    sum,
+                    sum / PROFILED_STEPS as f64
+                );
+            }
+            Err(e) => eprintln!("{label:<14} {nodes:>8}  no kernel times: {e}"),
+        }
+    }
+}
 
 fn env_list(name: &str) -> Option<Vec<String>> {
     std::env::var(name)
@@ -27,6 +79,7 @@ fn backends(c: &mut Criterion) {
     let models = env_list("NEEDLESIM_BENCH_MODELS");
     let mut group = c.benchmark_group("backends");
     group.sample_size(10);
+    let mut profiles: Vec<Profile> = Vec::new();
     for (label, material) in MODELS {
         if models
             .as_ref()
@@ -76,10 +129,12 @@ fn backends(c: &mut Criterion) {
                     })
                 },
             );
+            profiles.push((label, nodes, profile(&mut g)));
             g.check_finite().expect("bench scene stays finite");
         }
     }
     group.finish();
+    print_profiles(&profiles);
 }
 
 criterion_group!(benches, backends);

@@ -4,7 +4,8 @@
 //!   (default `639,10932,100000`): the cost should not grow with the node count;
 //! - `step_inserted/<backend>/10932`: one full `Simulation` step of a 10932-node LSHM cube
 //!   with the needle 6 cm inside (Surface, Shaft and Tip nodes, friction, force readback),
-//!   on one CPU thread, all CPU threads and the GPU when an adapter is found.
+//!   on one CPU thread, all CPU threads and the GPU when an adapter is found; for the GPU,
+//!   the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed first.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces};
@@ -92,6 +93,9 @@ fn inserted() -> Scene {
         .unwrap()
 }
 
+/// Steps over which the GPU's readbacks per needle step are counted.
+const COUNTED_STEPS: u64 = 200;
+
 fn step_inserted(c: &mut Criterion) {
     let scene = inserted();
     let mut group = c.benchmark_group("step_inserted");
@@ -124,6 +128,14 @@ fn step_inserted(c: &mut Criterion) {
             "{name}: {} needle nodes, {n} active nodes",
             sim.needle_nodes().len()
         );
+        if *name == "gpu" {
+            let before = sim.backend().readbacks();
+            for _ in 0..COUNTED_STEPS {
+                sim.step().unwrap();
+            }
+            let per_step = (sim.backend().readbacks() - before) as f64 / COUNTED_STEPS as f64;
+            eprintln!("{name}: {per_step:.3} blocking readbacks per needle step over {COUNTED_STEPS} steps");
+        }
         group.bench_function(BenchmarkId::new(*name, n), |b| {
             b.iter(|| sim.step().unwrap())
         });

@@ -330,3 +330,171 @@ fn a_checkpoint_round_trips_through_the_gpu() {
     again.step_n(10).unwrap();
     assert_eq!(again.steps(), 1_510);
 }
+
+/// Kernel profiling: where the device has timestamp queries (lavapipe has), a profiled run
+/// reports every kernel of the model, in order, with its dispatch count and a positive
+/// time, and steps exactly as an unprofiled one (same bits); a reset forgets the times and
+/// profiling off records nothing. Without timestamp queries enabling it is a typed error.
+#[test]
+fn profiled_runs_time_every_kernel_and_change_nothing() {
+    for (label, material) in all_models() {
+        let scene = cube_scene(material, 639, 20.0, [1.3, 1.0, 1.0]);
+        let tissue = Tissue::from_scene(&scene).unwrap();
+        let Some(mut g) = gpu(&tissue) else { return };
+        if !g.profiling_supported() {
+            eprintln!("{label}: no timestamp queries on {}", g.adapter());
+            assert!(matches!(
+                g.enable_profiling(true),
+                Err(GpuError::ProfilingUnsupported { .. })
+            ));
+            assert!(g.kernel_times().is_err());
+            continue;
+        }
+        let mut plain = gpu(&tissue).unwrap();
+        // Nothing is timed before profiling is on.
+        g.step(3);
+        plain.step(3);
+        g.enable_profiling(true).unwrap();
+        assert!(g.profiling());
+        // Two batches (200 + 50 steps), then one step the way the needle runs it.
+        for b in [&mut g, &mut plain] {
+            b.step(250);
+            b.compute_forces();
+            b.integrate();
+        }
+        let before = g.readbacks();
+        let times = g.kernel_times().unwrap();
+        assert_eq!(g.readbacks(), before + 1, "one readback for the times");
+        let kernels = if matches!(label, "msm" | "lshm-node") {
+            2
+        } else {
+            3
+        };
+        assert_eq!(times.len(), kernels, "{label}: {times:?}");
+        assert_eq!(times.last().unwrap().name, "integrate");
+        for t in &times {
+            eprintln!(
+                "{label}: {:<32} {:>4} dispatches, {:.4} ms each",
+                t.name, t.dispatches, t.mean_ms
+            );
+            assert_eq!(t.dispatches, 251, "{label}: {t:?}");
+            assert!(t.total_ms > 0.0 && t.total_ms.is_finite(), "{label}: {t:?}");
+            assert!((t.mean_ms * 251.0 - t.total_ms).abs() <= 1e-9 * t.total_ms);
+        }
+        assert_eq!(
+            read(&mut g, NodeField::Position),
+            read(&mut plain, NodeField::Position),
+            "{label}: profiling changed the result"
+        );
+        g.reset_kernel_times();
+        g.enable_profiling(false).unwrap();
+        g.step(5);
+        assert!(g.kernel_times().unwrap().iter().all(|t| t.dispatches == 0));
+    }
+}
+
+/// More timed dispatches than the timestamp log holds (8192): it is read back on the
+/// way and every dispatch is still counted.
+#[test]
+fn profiling_outlasts_the_timestamp_log() {
+    let scene = cube_scene(MODELS[0].1, 639, 20.0, [1.0; 3]);
+    let tissue = Tissue::from_scene(&scene).unwrap();
+    let Some(mut g) = gpu(&tissue) else { return };
+    if g.enable_profiling(true).is_err() {
+        return;
+    }
+    g.step(4300);
+    let times = g.kernel_times().unwrap();
+    assert!(times
+        .iter()
+        .all(|t| t.dispatches == 4300 && t.total_ms > 0.0));
+    assert_eq!(g.readbacks(), 2, "one full log, then the rest");
+}
+
+/// `read_many` gathers ranges and node lists of several fields in one readback, with the
+/// same values as separate reads, on the GPU and (one read at a time) on the CPU; reads
+/// larger than the staging buffer are split; bad requests are typed errors that read
+/// nothing.
+#[test]
+fn read_many_gathers_in_one_readback() {
+    use needlesim::core::NodeSelection;
+    use needlesim::SimError;
+    let scene = cube_scene(MODELS[2].1, 639, 20.0, [1.3, 1.0, 1.0]);
+    let tissue = Tissue::from_scene(&scene).unwrap();
+    let mut c = backend(&scene, Threading::Single);
+    let Some(mut g) = gpu(&tissue) else { return };
+    let n = tissue.state.capacity();
+    let list = [7u32, 8, 9, 600, 3, 3];
+    for b in [&mut c as &mut dyn Backend, &mut g] {
+        b.step(20);
+        b.compute_forces();
+        let (p, v, f) = (
+            read(b, NodeField::Position),
+            read(b, NodeField::Velocity),
+            read(b, NodeField::Force),
+        );
+        let (mut a, mut bv, mut cf) = (vec![[0.0; 4]; 37], vec![[0.0; 4]; 1], vec![[0.0; 4]; 6]);
+        let before = b.readbacks();
+        b.read_many(
+            &[
+                (NodeField::Position, (100..137).into()),
+                (NodeField::Velocity, (5..6).into()),
+                (NodeField::Force, NodeSelection::List(&list)),
+            ],
+            &mut [&mut a, &mut bv, &mut cf],
+        )
+        .unwrap();
+        if b.name().starts_with("gpu") {
+            assert_eq!(b.readbacks(), before + 1);
+        }
+        assert_eq!(a, p[100..137]);
+        assert_eq!(bv, v[5..6]);
+        assert_eq!(cf, list.map(|i| f[i as usize]));
+        // Everything, twice the staging buffer: two readbacks on the GPU.
+        let (mut pa, mut va) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
+        let before = b.readbacks();
+        b.read_many(
+            &[
+                (NodeField::Position, (0..n).into()),
+                (NodeField::Velocity, (0..n).into()),
+            ],
+            &mut [&mut pa, &mut va],
+        )
+        .unwrap();
+        if b.name().starts_with("gpu") {
+            assert_eq!(b.readbacks(), before + 2);
+        }
+        assert!(pa == p && va == v);
+        // Bad requests: another number of outputs, a short output, nodes out of range.
+        let before = b.readbacks();
+        let e = b
+            .read_many(&[(NodeField::Position, (0..2).into())], &mut [])
+            .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SimError::BadReadLength {
+                    what: "outputs",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let e = b
+            .read_many(&[(NodeField::Position, (0..2).into())], &mut [&mut a])
+            .unwrap_err();
+        assert!(
+            matches!(e, SimError::BadReadLength { what: "nodes", .. }),
+            "{e}"
+        );
+        let e = b
+            .read_many(
+                &[(NodeField::Position, NodeSelection::List(&[n as u32]))],
+                &mut [&mut bv],
+            )
+            .unwrap_err();
+        assert!(matches!(e, SimError::OutOfRange { .. }), "{e}");
+        assert_eq!(b.readbacks(), before);
+    }
+    assert_eq!(c.readbacks(), 0, "the CPU backend has no readbacks");
+}

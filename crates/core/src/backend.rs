@@ -2,7 +2,9 @@
 //! the tissue: the CPU backend here, the GPU backend in `needlesim-gpu`.
 //!
 //! A backend owns the node arrays; callers read and write ranges of nodes (the needle
-//! nodes) and individual neighbour rows, and step it.
+//! nodes) and individual neighbour rows, and step it. On a GPU every read is a blocking
+//! round trip ([`Backend::readbacks`] counts them): [`Backend::read_many`] and
+//! [`Backend::read_nodes`] gather several pieces into one.
 
 use crate::error::SimError;
 use crate::math::Vec4;
@@ -18,6 +20,43 @@ pub enum NodeField {
     Velocity,
     /// Elastic forces of the last force evaluation.
     Force,
+}
+
+/// The nodes one request of [`Backend::read_many`] reads: a range, or a list (in its
+/// order, repeats allowed).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NodeSelection<'a> {
+    /// Nodes `start..end`.
+    Range(Range<usize>),
+    /// The listed nodes.
+    List(&'a [u32]),
+}
+
+impl NodeSelection<'_> {
+    /// Nodes selected (0 for a range that ends before it starts).
+    pub fn len(&self) -> usize {
+        match self {
+            NodeSelection::Range(r) => r.end.saturating_sub(r.start),
+            NodeSelection::List(l) => l.len(),
+        }
+    }
+
+    /// Whether no node is selected.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl From<Range<usize>> for NodeSelection<'_> {
+    fn from(r: Range<usize>) -> Self {
+        NodeSelection::Range(r)
+    }
+}
+
+impl<'a> From<&'a [u32]> for NodeSelection<'a> {
+    fn from(l: &'a [u32]) -> Self {
+        NodeSelection::List(l)
+    }
 }
 
 /// Something that steps the tissue. `Send`, so that a simulation can run on another
@@ -73,6 +112,36 @@ pub trait Backend: Send {
         }
         Ok(())
     }
+    /// Copies `requests[i]` (a field and its nodes: a range or a list) into `outs[i]` for
+    /// every `i` (`outs[i].len()` the number of nodes), in one transfer where the backend
+    /// can: the GPU backend copies every piece into one staging buffer and maps it once.
+    /// The needle reads the positions and velocities of its nodes, and the corners of the
+    /// surface triangles near the tip, together this way. The default reads the requests
+    /// one by one ([`Backend::read`], [`Backend::read_nodes`]). Lengths are checked before
+    /// anything is read ([`SimError::BadReadLength`]).
+    fn read_many(
+        &mut self,
+        requests: &[(NodeField, NodeSelection<'_>)],
+        outs: &mut [&mut [Vec4]],
+    ) -> Result<(), SimError> {
+        check_many(requests, outs)?;
+        for ((field, nodes), out) in requests.iter().zip(outs.iter_mut()) {
+            match nodes {
+                NodeSelection::Range(r) => self.read(*field, r.clone(), out)?,
+                NodeSelection::List(l) => self.read_nodes(*field, l, out)?,
+            }
+        }
+        Ok(())
+    }
+    /// Blocking device-to-host readbacks (a copy to host memory and a wait for it) since the
+    /// backend was created. Every [`Backend::read`], [`Backend::read_nodes`],
+    /// [`Backend::read_many`] and [`Backend::read_shape_bytes`] of the GPU backend is one,
+    /// or one per staging buffer's worth of data when it reads more than the staging buffer
+    /// holds (its capacity in nodes). A backend whose arrays are in host memory has none:
+    /// the default returns 0.
+    fn readbacks(&self) -> u64 {
+        0
+    }
     /// Overwrites `data.len()` nodes of `field` starting at `first`.
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError>;
     /// Overwrites the neighbour rows of nodes `first..first + index.len() / K`.
@@ -115,8 +184,13 @@ pub fn check_bounded<B: Backend + ?Sized>(backend: &mut B, max_speed: f64) -> Re
     let n = backend.n_active();
     let mut p = vec![[0.0f32; 4]; n];
     let mut v = vec![[0.0f32; 4]; n];
-    backend.read(NodeField::Position, 0..n, &mut p)?;
-    backend.read(NodeField::Velocity, 0..n, &mut v)?;
+    backend.read_many(
+        &[
+            (NodeField::Position, (0..n).into()),
+            (NodeField::Velocity, (0..n).into()),
+        ],
+        &mut [&mut p, &mut v],
+    )?;
     check_arrays(backend.steps_taken(), &p, &v, max_speed)
 }
 
@@ -169,6 +243,32 @@ pub fn check_gather(nodes: &[u32], out: &[Vec4]) -> Result<(), SimError> {
             len: out.len(),
         })
     }
+}
+
+/// Checks that a [`Backend::read_many`] has one output per request, each with one slot
+/// per selected node (the nodes themselves are the backend's to check).
+pub fn check_many(
+    requests: &[(NodeField, NodeSelection<'_>)],
+    outs: &[&mut [Vec4]],
+) -> Result<(), SimError> {
+    if requests.len() != outs.len() {
+        return Err(SimError::BadReadLength {
+            what: "outputs",
+            expected: requests.len(),
+            got: outs.len(),
+        });
+    }
+    for ((_, nodes), out) in requests.iter().zip(outs) {
+        let expected = nodes.len();
+        if out.len() != expected {
+            return Err(SimError::BadReadLength {
+                what: "nodes",
+                expected,
+                got: out.len(),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Checks that `range` lies within `limit` nodes.

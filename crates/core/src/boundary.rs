@@ -12,7 +12,7 @@
 //!   set's held components (zero in its free ones), `f_i` the forces of the last step.
 //!   At rest it balances the loads and the weight.
 
-use crate::backend::{Backend, NodeField};
+use crate::backend::{Backend, NodeField, NodeSelection};
 use crate::error::SimError;
 use crate::scene::Motion;
 
@@ -129,8 +129,13 @@ impl Boundary {
             let v = h.motion.map_or([0.0; 3], |m| m.velocity(t));
             let mut p = vec![[0.0f32; 4]; h.nodes.len()];
             let mut vel = vec![[0.0f32; 4]; h.nodes.len()];
-            b.read_nodes(NodeField::Position, &h.nodes, &mut p)?;
-            b.read_nodes(NodeField::Velocity, &h.nodes, &mut vel)?;
+            b.read_many(
+                &[
+                    (NodeField::Position, NodeSelection::List(&h.nodes)),
+                    (NodeField::Velocity, NodeSelection::List(&h.nodes)),
+                ],
+                &mut [&mut p, &mut vel],
+            )?;
             for k in 0..h.nodes.len() {
                 for a in (0..3).filter(|&a| h.components[a]) {
                     p[k][a] = (h.rest[k][a] + u[a]) as f32;

@@ -198,4 +198,15 @@ pub enum SimError {
         /// What failed.
         message: String,
     },
+    /// A batched read ([`crate::Backend::read_many`]) whose outputs do not match its
+    /// requests: another number of outputs, or an output of another length than its range.
+    #[error("batched read: {what}: expected {expected}, got {got}")]
+    BadReadLength {
+        /// `outputs` (their number) or `nodes` (an output's length).
+        what: &'static str,
+        /// Outputs, or nodes, the requests ask for.
+        expected: usize,
+        /// Outputs, or nodes, given.
+        got: usize,
+    },
 }

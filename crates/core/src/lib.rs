@@ -41,7 +41,7 @@ pub mod tissue;
 /// re-exported so that callers of the model functions use the same version.
 pub use glam;
 
-pub use backend::{Backend, NodeField};
+pub use backend::{Backend, NodeField, NodeSelection};
 pub use cpu::{CpuBackend, Threading};
 pub use error::{GeometryError, SceneError, SimError};
 pub use math::Vec4;

@@ -39,8 +39,13 @@ pub fn max_eigenvalue(
     let n = backend.n_active();
     let mut p0 = vec![[0.0f32; 4]; n];
     let mut v0 = vec![[0.0f32; 4]; n];
-    backend.read(NodeField::Position, 0..n, &mut p0)?;
-    backend.read(NodeField::Velocity, 0..n, &mut v0)?;
+    backend.read_many(
+        &[
+            (NodeField::Position, (0..n).into()),
+            (NodeField::Velocity, (0..n).into()),
+        ],
+        &mut [&mut p0, &mut v0],
+    )?;
     // No velocities while probing: spring damping would add to the force differences.
     backend.write(NodeField::Velocity, 0, &vec![[0.0; 4]; n])?;
     let free: Vec<usize> = (0..n).filter(|&i| p0[i][3] > 0.0).collect();

@@ -1,16 +1,19 @@
 //! The GPU backend: the tissue's arrays in storage buffers sized for the capacity, the
 //! chosen model's kernels, and the [`Backend`] operations (batched steps without readback,
-//! range reads and writes, neighbour rows).
+//! range reads and writes, neighbour rows), with a count of blocking readbacks and opt-in
+//! per-kernel timestamps ([`GpuBackend::enable_profiling`]).
 
 use crate::context::{GpuContext, GpuError};
 use crate::kernels::{self, Kernel, WORKGROUP};
+use crate::profile::{map_read, KernelTime, Profiler};
 use bytemuck::{Pod, Zeroable};
-use needlesim_core::backend::{check_range, check_rows, check_shape_write};
+use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
 use needlesim_core::models::mls::ContinuumConstants;
 use needlesim_core::models::{ShapeArray, ShapeInfo};
 use needlesim_core::scene::{DebunneParams, MassSpringParams, Material, ShapeMatchingParams};
-use needlesim_core::{Backend, NodeField, SimError, Tissue, Vec4};
+use needlesim_core::{Backend, NodeField, NodeSelection, SimError, Tissue, Vec4};
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 use wgpu::util::DeviceExt;
 
 /// The uniform parameter block (`Params` in the top-level `shaders/common.wgsl`).
@@ -79,6 +82,9 @@ struct Pass {
     bind: wgpu::BindGroup,
 }
 
+/// One piece of a readback: `bytes.len()` bytes from byte `offset` of a device buffer.
+type Piece<'a> = (&'a wgpu::Buffer, u64, &'a mut [u8]);
+
 /// The tissue stepped by wgpu compute shaders.
 #[derive(Debug)]
 pub struct GpuBackend {
@@ -90,6 +96,10 @@ pub struct GpuBackend {
     capacity: usize,
     steps: u64,
     max_groups_x: u32,
+    /// Blocking readbacks so far ([`Backend::readbacks`]).
+    readbacks: AtomicU64,
+    /// Timestamps per kernel, once profiling was enabled.
+    profiler: Option<Profiler>,
 }
 
 fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
@@ -232,6 +242,8 @@ impl GpuBackend {
             params,
             capacity,
             steps: 0,
+            readbacks: AtomicU64::new(0),
+            profiler: None,
         };
         backend
             .set_n_active(st.n_active)
@@ -263,61 +275,221 @@ impl GpuBackend {
         (x, n.div_ceil(x))
     }
 
-    fn record(&self, encoder: &mut wgpu::CommandEncoder, steps: u64, integrate: bool) {
+    /// Records `steps` times the force kernels (if `forces`) and the integration (if
+    /// `integrate`): all in one compute pass, or, while profiling, one pass per dispatch
+    /// with a timestamp at its beginning and end.
+    fn record(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        steps: u64,
+        forces: bool,
+        integrate: bool,
+    ) {
         if self.params.n_active == 0 {
             return;
         }
         let groups = self.groups();
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("step"),
-            timestamp_writes: None,
-        });
+        let n_force = self.force_passes.len();
+        let kernels = || {
+            let force = self
+                .force_passes
+                .iter()
+                .take(if forces { n_force } else { 0 });
+            let last = integrate.then_some(&self.integrate);
+            force.chain(last).enumerate().map(move |(k, p)| {
+                // The integration's index is after the force kernels'.
+                let id = if forces { k } else { n_force + k };
+                (id, p)
+            })
+        };
+        let Some(profiler) = self.profiler.as_mut().filter(|p| p.on) else {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("step"),
+                timestamp_writes: None,
+            });
+            for _ in 0..steps {
+                for (_, p) in kernels() {
+                    p.kernel.dispatch(&mut pass, &p.bind, groups);
+                }
+            }
+            return;
+        };
+        let per_step = kernels().count() as u64;
+        profiler.reserve(&self.ctx.device, steps * per_step, &self.readbacks);
         for _ in 0..steps {
-            for p in &self.force_passes {
+            for (id, p) in kernels() {
+                let writes = profiler.next(encoder, id);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(p.kernel.name),
+                    timestamp_writes: Some(writes),
+                });
                 p.kernel.dispatch(&mut pass, &p.bind, groups);
             }
-            if integrate {
-                self.integrate
-                    .kernel
-                    .dispatch(&mut pass, &self.integrate.bind, groups);
-            }
         }
+        profiler.flush(encoder);
     }
 
-    fn submit(&self, steps: u64, integrate: bool) {
+    fn submit(&mut self, steps: u64, forces: bool, integrate: bool) {
         let mut encoder = self
             .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("steps"),
             });
-        self.record(&mut encoder, steps, integrate);
+        self.record(&mut encoder, steps, forces, integrate);
         self.ctx.queue.submit([encoder.finish()]);
     }
 
-    /// Copies runs `(first node, count)` of `field` into `out`, back to back.
-    fn gather(
-        &self,
-        field: NodeField,
-        runs: &[(usize, usize)],
-        out: &mut [Vec4],
-    ) -> Result<(), SimError> {
-        let buffer = self.field(field);
-        let copies: Vec<_> = runs
-            .iter()
-            .map(|&(first, count)| (buffer, (first * 16) as u64, (count * 16) as u64))
-            .collect();
-        self.copy_out(&copies, bytemuck::cast_slice_mut(out))
+    /// Whether the device can time kernels (wgpu's `TIMESTAMP_QUERY` feature, which
+    /// [`GpuContext::new`] asks for where the adapter has it).
+    pub fn profiling_supported(&self) -> bool {
+        self.ctx
+            .device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
     }
 
-    /// Copies `(buffer, byte offset, bytes)` pieces back to back into `out` through the
-    /// readback buffer, in one submit and one mapping (the pieces must fit in it).
-    fn copy_out(
-        &self,
-        copies: &[(&wgpu::Buffer, u64, u64)],
-        out: &mut [u8],
+    /// Turns per-kernel GPU timing on or off. While on, every dispatch runs in its own
+    /// compute pass with timestamps at its beginning and end (the results are the same;
+    /// batched steps lose a little speed to the extra passes); the timestamps stay on the
+    /// device until [`GpuBackend::kernel_times`] reads them (or, every 8192 dispatches, the
+    /// log they go to is full and is read back: one readback). Off, the default, nothing is
+    /// recorded and stepping is unchanged. Times collected so far are kept when it is
+    /// turned off. An error, and nothing changed, when the device cannot time kernels.
+    pub fn enable_profiling(&mut self, on: bool) -> Result<(), GpuError> {
+        if !on {
+            if let Some(p) = &mut self.profiler {
+                p.on = false;
+            }
+            return Ok(());
+        }
+        if !self.profiling_supported() {
+            return Err(GpuError::ProfilingUnsupported {
+                adapter: self.ctx.adapter.name.clone(),
+            });
+        }
+        let kernels = self.force_passes.len() + 1;
+        let (device, queue) = (&self.ctx.device, &self.ctx.queue);
+        let p = self.profiler.get_or_insert_with(|| {
+            Profiler::new(device, queue, kernels, STEPS_PER_SUBMIT * kernels as u64)
+        });
+        p.on = true;
+        Ok(())
+    }
+
+    /// Whether kernels are being timed ([`GpuBackend::enable_profiling`]).
+    pub fn profiling(&self) -> bool {
+        self.profiler.as_ref().is_some_and(|p| p.on)
+    }
+
+    /// GPU time per kernel since profiling was first enabled or last reset: one entry per
+    /// kernel of the model, the force kernels in order, then `integrate` (zero dispatches
+    /// for a kernel not run while profiling). Waits for the submitted work and reads the
+    /// timestamps back (one readback). [`GpuError::ProfilingUnsupported`] when the device
+    /// cannot time kernels; [`GpuError::Readback`] when reading the timestamps failed.
+    pub fn kernel_times(&mut self) -> Result<Vec<KernelTime>, GpuError> {
+        if !self.profiling_supported() {
+            return Err(GpuError::ProfilingUnsupported {
+                adapter: self.ctx.adapter.name.clone(),
+            });
+        }
+        let names: Vec<&'static str> = self
+            .force_passes
+            .iter()
+            .chain([&self.integrate])
+            .map(|p| p.kernel.name)
+            .collect();
+        match &mut self.profiler {
+            Some(p) => p
+                .times(&self.ctx.device, &names, &self.readbacks)
+                .map_err(GpuError::Readback),
+            None => Ok(names
+                .into_iter()
+                .map(|name| KernelTime {
+                    name,
+                    dispatches: 0,
+                    total_ms: 0.0,
+                    mean_ms: 0.0,
+                })
+                .collect()),
+        }
+    }
+
+    /// Forgets the kernel times collected so far (profiling stays on or off).
+    pub fn reset_kernel_times(&mut self) {
+        if let Some(p) = &mut self.profiler {
+            p.reset();
+        }
+    }
+
+    /// The pieces that copy `nodes` of `field` into `out` back to back: one per run of
+    /// consecutive nodes. Errs on a node outside the allocated ones.
+    fn pieces<'a>(
+        &'a self,
+        field: NodeField,
+        nodes: &NodeSelection<'_>,
+        out: &'a mut [Vec4],
+        pieces: &mut Vec<Piece<'a>>,
     ) -> Result<(), SimError> {
-        let bytes: u64 = copies.iter().map(|c| c.2).sum();
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        match nodes {
+            NodeSelection::Range(r) => {
+                check_range(r, self.capacity, "allocated")?;
+                runs.push((r.start, r.len()));
+            }
+            NodeSelection::List(list) => {
+                for &i in list.iter() {
+                    let i = i as usize;
+                    check_range(&(i..i + 1), self.capacity, "allocated")?;
+                    match runs.last_mut() {
+                        Some((s, n)) if *s + *n == i => *n += 1,
+                        _ => runs.push((i, 1)),
+                    }
+                }
+            }
+        }
+        let buffer = self.field(field);
+        let mut rest: &mut [u8] = bytemuck::cast_slice_mut(out);
+        for (first, count) in runs {
+            let (head, tail) = std::mem::take(&mut rest).split_at_mut(count * 16);
+            pieces.push((buffer, (first * 16) as u64, head));
+            rest = tail;
+        }
+        Ok(())
+    }
+
+    /// Reads `pieces` through the readback buffer: as many as fit in it per submit and
+    /// mapping (a piece larger than the buffer is split), so small reads take one
+    /// readback however many pieces they have. Offsets and lengths are multiples of 4.
+    fn read_pieces(&self, pieces: Vec<Piece<'_>>) -> Result<(), SimError> {
+        let room = self.buffers.readback.size();
+        let mut batch: Vec<Piece<'_>> = Vec::new();
+        let mut used = 0u64;
+        for (buffer, mut offset, mut out) in pieces {
+            while !out.is_empty() {
+                if used == room {
+                    self.copy_out(&mut batch)?;
+                    batch.clear();
+                    used = 0;
+                }
+                let take = (out.len() as u64).min(room - used) as usize;
+                let (head, tail) = std::mem::take(&mut out).split_at_mut(take);
+                batch.push((buffer, offset, head));
+                used += take as u64;
+                offset += take as u64;
+                out = tail;
+            }
+        }
+        if !batch.is_empty() {
+            self.copy_out(&mut batch)?;
+        }
+        Ok(())
+    }
+
+    /// Copies `pieces` (at most the readback buffer's size in all) through the readback
+    /// buffer in one submit and one mapping: one readback.
+    fn copy_out(&self, pieces: &mut [Piece<'_>]) -> Result<(), SimError> {
+        let bytes: u64 = pieces.iter().map(|p| p.2.len() as u64).sum();
         if bytes == 0 {
             return Ok(());
         }
@@ -328,33 +500,28 @@ impl GpuBackend {
                 label: Some("read"),
             });
         let mut at = 0u64;
-        for &(buffer, offset, len) in copies {
-            encoder.copy_buffer_to_buffer(buffer, offset, &self.buffers.readback, at, len);
+        for (buffer, offset, out) in pieces.iter() {
+            let len = out.len() as u64;
+            encoder.copy_buffer_to_buffer(buffer, *offset, &self.buffers.readback, at, len);
             at += len;
         }
         self.ctx.queue.submit([encoder.finish()]);
-        let slice = self.buffers.readback.slice(..bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.wait();
-        match rx.recv() {
-            Ok(Ok(())) => {}
-            other => {
-                return Err(SimError::Device {
-                    message: format!("mapping the readback buffer failed: {other:?}"),
-                })
-            }
-        }
-        {
-            let view = slice.get_mapped_range().map_err(|e| SimError::Device {
-                message: format!("reading the readback buffer failed: {e}"),
-            })?;
-            out.copy_from_slice(&view);
-        }
-        self.buffers.readback.unmap();
-        Ok(())
+        map_read(
+            &self.ctx.device,
+            "readback",
+            &self.buffers.readback,
+            bytes,
+            &self.readbacks,
+            |data| {
+                let mut at = 0;
+                for (_, _, out) in pieces.iter_mut() {
+                    let len = out.len();
+                    out.copy_from_slice(&data[at..at + len]);
+                    at += len;
+                }
+            },
+        )
+        .map_err(|message| SimError::Device { message })
     }
 
     fn field(&self, field: NodeField) -> &wgpu::Buffer {
@@ -499,27 +666,11 @@ impl Backend for GpuBackend {
     }
 
     fn compute_forces(&mut self) {
-        self.submit(1, false);
+        self.submit(1, true, false);
     }
 
     fn integrate(&mut self) {
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("integrate"),
-            });
-        if self.params.n_active > 0 {
-            let groups = self.groups();
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("integrate"),
-                timestamp_writes: None,
-            });
-            self.integrate
-                .kernel
-                .dispatch(&mut pass, &self.integrate.bind, groups);
-        }
-        self.ctx.queue.submit([encoder.finish()]);
+        self.submit(1, false, true);
         self.steps += 1;
     }
 
@@ -529,7 +680,7 @@ impl Backend for GpuBackend {
         let mut left = n;
         while left > 0 {
             let batch = left.min(STEPS_PER_SUBMIT);
-            self.submit(batch, true);
+            self.submit(batch, true, true);
             left -= batch;
         }
         self.steps += n;
@@ -553,8 +704,27 @@ impl Backend for GpuBackend {
         range: Range<usize>,
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
-        check_range(&range, self.capacity, "allocated")?;
-        self.gather(field, &[(range.start, range.len())], out)
+        self.read_many(&[(field, range.into())], &mut [out])
+    }
+
+    /// Every request's copies (one per run of consecutive nodes) go into the readback
+    /// buffer in one submit and one mapping (more when they hold more than `capacity`
+    /// nodes in all).
+    fn read_many(
+        &mut self,
+        requests: &[(NodeField, NodeSelection<'_>)],
+        outs: &mut [&mut [Vec4]],
+    ) -> Result<(), SimError> {
+        check_many(requests, outs)?;
+        let mut pieces = Vec::new();
+        for ((field, nodes), out) in requests.iter().zip(outs.iter_mut()) {
+            self.pieces(*field, nodes, out, &mut pieces)?;
+        }
+        self.read_pieces(pieces)
+    }
+
+    fn readbacks(&self) -> u64 {
+        self.readbacks.load(Ordering::Relaxed)
     }
 
     /// One copy per run of consecutive nodes, one submit, one mapping.
@@ -565,24 +735,7 @@ impl Backend for GpuBackend {
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
         needlesim_core::backend::check_gather(nodes, out)?;
-        if nodes.len() > self.capacity {
-            // The readback buffer holds `capacity` nodes: read in pieces.
-            let c = self.capacity;
-            for (n, o) in nodes.chunks(c).zip(out.chunks_mut(c)) {
-                self.read_nodes(field, n, o)?;
-            }
-            return Ok(());
-        }
-        let mut runs: Vec<(usize, usize)> = Vec::new();
-        for &i in nodes {
-            let i = i as usize;
-            check_range(&(i..i + 1), self.capacity, "allocated")?;
-            match runs.last_mut() {
-                Some((s, n)) if *s + *n == i => *n += 1,
-                _ => runs.push((i, 1)),
-            }
-        }
-        self.gather(field, &runs, out)
+        self.read_many(&[(field, nodes.into())], &mut [out])
     }
 
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError> {
@@ -635,7 +788,7 @@ impl Backend for GpuBackend {
         Ok(())
     }
 
-    /// Reads in pieces of the readback buffer's size.
+    /// Reads in pieces of the readback buffer's size (one readback each).
     fn read_shape_bytes(
         &mut self,
         array: ShapeArray,
@@ -652,12 +805,6 @@ impl Backend for GpuBackend {
         let Some((_, buffer)) = source else {
             return Ok(());
         };
-        // A multiple of 4, as copies must be (the buffer holds at least one node, 16 bytes).
-        let piece = (self.buffers.readback.size() as usize) & !3;
-        for (k, chunk) in out.chunks_mut(piece).enumerate() {
-            let at = (offset + k * piece) as u64;
-            self.copy_out(&[(buffer, at, chunk.len() as u64)], chunk)?;
-        }
-        Ok(())
+        self.read_pieces(vec![(buffer, offset as u64, out)])
     }
 }

@@ -38,6 +38,16 @@ pub enum GpuError {
     /// Mapping a readback buffer failed.
     #[error("GPU readback failed: {0}")]
     Readback(String),
+    /// The device cannot time kernels: wgpu's `TIMESTAMP_QUERY` feature is missing (the
+    /// adapter lacks it, or the device was created without it).
+    #[error(
+        "kernel profiling is unsupported: the GPU device on {adapter} has no timestamp queries \
+         (wgpu feature TIMESTAMP_QUERY)"
+    )]
+    ProfilingUnsupported {
+        /// Adapter name.
+        adapter: String,
+    },
 }
 
 /// A device, its queue and what it is.
@@ -54,7 +64,7 @@ pub struct GpuContext {
 impl GpuContext {
     /// Uses an existing device and queue (for applications that already render with wgpu).
     /// The device must allow 8 storage buffers per shader stage and bindings as large as
-    /// the scene's largest buffer.
+    /// the scene's largest buffer; kernel profiling needs its `TIMESTAMP_QUERY` feature.
     pub fn from_device(
         device: wgpu::Device,
         queue: wgpu::Queue,
@@ -69,7 +79,8 @@ impl GpuContext {
 
     /// Creates a device on the highest-performance adapter, asking for the downlevel
     /// defaults plus 8 storage buffers per stage and a storage binding of
-    /// `largest_buffer` bytes (at least the default 128 MiB where the adapter allows it).
+    /// `largest_buffer` bytes (at least the default 128 MiB where the adapter allows it),
+    /// and for timestamp queries where the adapter has them (kernel profiling).
     pub fn new(largest_buffer: u64) -> Result<GpuContext, GpuError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
@@ -102,8 +113,10 @@ impl GpuContext {
                 .min(65535),
             ..wgpu::Limits::downlevel_defaults()
         };
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("needlesim"),
+            required_features: features,
             required_limits: limits,
             ..Default::default()
         }))

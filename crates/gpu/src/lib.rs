@@ -3,7 +3,9 @@
 //! The wgpu compute backend: every tissue model as WGSL kernels (the repository's top-level
 //! `shaders/`, one file per kernel plus shared code), on any GPU that wgpu drives (Vulkan,
 //! Metal, DX12) and on Mesa's software Vulkan driver (lavapipe) in CI. The CPU backend of `needlesim-core` is
-//! the reference each kernel mirrors; the tests compare the two.
+//! the reference each kernel mirrors; the tests compare the two. Every blocking readback is
+//! counted ([`needlesim_core::Backend::readbacks`]); where the device has timestamp queries,
+//! [`GpuBackend::enable_profiling`] times each kernel ([`GpuBackend::kernel_times`]).
 //!
 //! ```no_run
 //! use needlesim_core::{Backend, Scene, Tissue};
@@ -22,6 +24,8 @@
 mod backend;
 mod context;
 pub mod kernels;
+mod profile;
 
 pub use backend::{largest_buffer, Buffers, GpuBackend};
 pub use context::{GpuContext, GpuError};
+pub use profile::KernelTime;

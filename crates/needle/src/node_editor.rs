@@ -432,8 +432,13 @@ impl NodeEditor {
         // The slot's state.
         let mut old_p = [[0.0f32; 4]];
         let mut old_v = [[0.0f32; 4]];
-        backend.read(NodeField::Position, i..i + 1, &mut old_p)?;
-        backend.read(NodeField::Velocity, i..i + 1, &mut old_v)?;
+        backend.read_many(
+            &[
+                (NodeField::Position, (i..i + 1).into()),
+                (NodeField::Velocity, (i..i + 1).into()),
+            ],
+            &mut [&mut old_p, &mut old_v],
+        )?;
         undo.push(Undo::Slot {
             node: i as u32,
             position: old_p[0],

@@ -17,8 +17,14 @@
 //! 6. loads, integration, held sets and the divergence guard ([`Stepper::finish_step`]).
 //!
 //! Only needle node rows cross between host and device each step (plus, near the surface,
-//! the corners of the few candidate triangles). Without a needle, steps go to the backend
-//! in batches between divergence checks ([`Stepper::run`]).
+//! the corners of the few candidate triangles). With the tip inside, a step without node
+//! edits reads back twice ([`Backend::readbacks`]): the needle nodes' positions and
+//! velocities, with the candidate corners of the far-side test, in one
+//! [`Backend::read_many`] before the force evaluation, and their forces after it. (The
+//! first read needs the last integration, the second this step's forces, and the
+//! integration needs the friction computed from them.) Node edits, the Tip node refresh
+//! and the divergence guard read more. Without a needle, steps go to the backend in
+//! batches between divergence checks ([`Stepper::run`]).
 //!
 //! Needle nodes (a stack, removed in reverse order of addition): the Surface node where
 //! the tip first touched; Shaft nodes, one per spacing h of insertion; the Tip node at the
@@ -52,6 +58,7 @@ use crate::state::{NeedleState, Phase};
 use crate::SimulationError;
 use glam::DVec3;
 use needlesim_core::boundary::{Boundary, Reaction};
+use needlesim_core::math::Vec4;
 use needlesim_core::{Backend, NodeField, SimError, Stepper};
 
 /// The needle parameters a step uses, resolved from the scene.
@@ -89,6 +96,16 @@ pub struct Simulation {
     rest: Vec<[f64; 3]>,
     state: NeedleState,
     fingerprint: Vec<(String, u64)>,
+}
+
+/// What [`Simulation::read_needle`] reads.
+struct NeedleRead {
+    /// Needle node positions, oldest node first.
+    positions: Vec<DVec3>,
+    /// Their velocities.
+    velocities: Vec<Vec4>,
+    /// Positions of the extra nodes asked for.
+    extra: Vec<Vec4>,
 }
 
 /// The point at axial coordinate `s` from the needle's base.
@@ -341,17 +358,36 @@ impl Simulation {
         (at(now, s) - at(prev, s)) / self.stepper.dt()
     }
 
-    /// Positions of the needle nodes.
-    fn node_positions(&mut self) -> Result<Vec<DVec3>, SimError> {
+    /// Positions and velocities of the needle nodes, and the positions of the nodes
+    /// `extra`, in one [`Backend::read_many`].
+    fn read_needle(&mut self, extra: &[u32]) -> Result<NeedleRead, SimError> {
         let n0 = self.editor.n_mesh();
-        let mut buf = vec![[0.0f32; 4]; self.state.nodes.len()];
-        let range = n0..n0 + self.state.nodes.len();
-        self.backend.read(NodeField::Position, range, &mut buf)?;
-        Ok(buf.into_iter().map(xyz).collect())
+        let m = self.state.nodes.len();
+        let (mut p, mut v) = (vec![[0.0f32; 4]; m], vec![[0.0f32; 4]; m]);
+        let mut e = vec![[0.0f32; 4]; extra.len()];
+        let mut requests = vec![
+            (NodeField::Position, (n0..n0 + m).into()),
+            (NodeField::Velocity, (n0..n0 + m).into()),
+        ];
+        let mut outs: Vec<&mut [Vec4]> = vec![&mut p, &mut v];
+        if !extra.is_empty() {
+            requests.push((NodeField::Position, extra.into()));
+            outs.push(&mut e);
+        }
+        self.backend.read_many(&requests, &mut outs)?;
+        Ok(NeedleRead {
+            positions: p.into_iter().map(xyz).collect(),
+            velocities: v,
+            extra: e,
+        })
     }
 
-    /// Velocity of needle node `k`.
-    fn node_velocity(&mut self, k: usize) -> Result<DVec3, SimError> {
+    /// Velocity of needle node `k`: from `known` (the needle nodes' velocities read this
+    /// step, while no node was edited since) or read back.
+    fn node_velocity(&mut self, k: usize, known: Option<&[Vec4]>) -> Result<DVec3, SimError> {
+        if let Some(v) = known.and_then(|v| v.get(k)) {
+            return Ok(xyz(*v));
+        }
         let i = self.state.nodes[k].index as usize;
         let mut v = [[0.0f32; 4]];
         self.backend.read(NodeField::Velocity, i..i + 1, &mut v)?;

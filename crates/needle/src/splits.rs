@@ -85,34 +85,86 @@ impl SurfaceSplits {
         entering: bool,
         skip: &[u32],
     ) -> Result<Option<(usize, [f64; 3])>, SimError> {
-        if p0 == p1 {
+        let Some(query) = self.crossing_query(p0, p1, entering, skip) else {
             return Ok(None);
+        };
+        let mut pos = vec![[0.0f32; 4]; query.corners.len()];
+        backend.read_nodes(NodeField::Position, &query.corners, &mut pos)?;
+        Ok(self.crossing_at(&query, &pos))
+    }
+
+    /// The first half of [`SurfaceSplits::crossing`]: the candidate triangles and the
+    /// corners to read (`None`: no candidate, so no crossing). The caller reads the
+    /// corners' positions (with other reads) and gives them to
+    /// [`SurfaceSplits::crossing_at`] while the triangles and `skip` are unchanged.
+    pub fn crossing_query(
+        &self,
+        p0: [f64; 3],
+        p1: [f64; 3],
+        entering: bool,
+        skip: &[u32],
+    ) -> Option<CrossingQuery> {
+        if p0 == p1 {
+            return None;
         }
         let mut cand = self.grid.candidates(p0, p1);
         cand.retain(|&c| !self.triangles[c as usize].iter().any(|v| skip.contains(v)));
         if cand.is_empty() {
-            return Ok(None);
+            return None;
         }
-        let mut verts: Vec<u32> = cand
+        let mut corners: Vec<u32> = cand
             .iter()
             .flat_map(|&c| self.triangles[c as usize])
             .collect();
-        verts.sort_unstable();
-        verts.dedup();
-        let mut pos = vec![[0.0f32; 4]; verts.len()];
-        backend.read_nodes(NodeField::Position, &verts, &mut pos)?;
+        corners.sort_unstable();
+        corners.dedup();
+        Some(CrossingQuery {
+            p0,
+            p1,
+            entering,
+            candidates: cand,
+            corners,
+        })
+    }
+
+    /// The answer of [`SurfaceSplits::crossing`] from the corner positions `pos` of
+    /// `query` (in the order of [`CrossingQuery::corners`]).
+    pub fn crossing_at(
+        &self,
+        query: &CrossingQuery,
+        pos: &[[f32; 4]],
+    ) -> Option<(usize, [f64; 3])> {
+        let corners = &query.corners;
         let p = |v: u32| {
-            let q = pos[verts.binary_search(&v).expect("listed")];
+            let q = pos[corners.binary_search(&v).expect("listed")];
             [q[0] as f64, q[1] as f64, q[2] as f64]
         };
-        let side = if entering {
+        let side = if query.entering {
             Side::Entering
         } else {
             Side::Leaving
         };
-        let hit = first_crossing(p0, p1, cand, side, |c| self.triangles[c as usize].map(p));
-        Ok(hit.map(|h| (h.triangle as usize, h.point)))
+        let hit = first_crossing(
+            query.p0,
+            query.p1,
+            query.candidates.iter().copied(),
+            side,
+            |c| self.triangles[c as usize].map(p),
+        );
+        hit.map(|h| (h.triangle as usize, h.point))
     }
+}
+
+/// A surface crossing query whose corner positions are still to be read
+/// ([`SurfaceSplits::crossing_query`]).
+#[derive(Debug, Clone)]
+pub(crate) struct CrossingQuery {
+    p0: [f64; 3],
+    p1: [f64; 3],
+    entering: bool,
+    candidates: Vec<u32>,
+    /// Corner nodes of the candidate triangles, sorted, each once.
+    pub corners: Vec<u32>,
 }
 
 /// Segment parameters in `[0, 1]` where `p0 -> p1` crosses the surface `triangles` over

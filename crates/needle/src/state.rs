@@ -49,6 +49,11 @@ pub(crate) struct NeedleState {
     pub velocities: Vec<Vec4>,
     /// Positions written to the needle nodes this step.
     pub positions: Vec<Vec4>,
+    /// Velocities of the needle nodes as read with their positions at the start of this
+    /// step, while no needle node has been edited since (else empty), for `constrain`. Not
+    /// in checkpoints: a restored run reads them again.
+    #[serde(skip)]
+    pub read_velocities: Vec<Vec4>,
     /// Where the Tip node was last placed.
     pub tip_placed: [f64; 3],
     /// The tip at the start of this step's sweep.
@@ -81,6 +86,7 @@ impl NeedleState {
             nodes: Vec::new(),
             velocities: Vec::new(),
             positions: Vec::new(),
+            read_velocities: Vec::new(),
             tip_placed: [0.0; 3],
             swept_from: [0.0; 3],
             entry: None,

@@ -36,14 +36,25 @@ impl Simulation {
         let n0 = self.editor.n_mesh();
         let mut v = vec![[0.0f32; 4]; m];
         // Only sliding nodes need their own state; sticking ones follow the needle. The
-        // positions come from the contact update when it read them this step.
+        // positions (and, without node edits, the velocities) come from the contact
+        // update when it read them this step; else both are read in one readback.
         let mut p = std::mem::take(&mut self.state.positions);
+        let known = std::mem::take(&mut self.state.read_velocities);
         if self.state.nodes.iter().any(|n| !self.kinematic(n)) {
             if p.len() != m {
                 p = vec![[0.0f32; 4]; m];
-                self.backend.read(NodeField::Position, n0..n0 + m, &mut p)?;
+                self.backend.read_many(
+                    &[
+                        (NodeField::Position, (n0..n0 + m).into()),
+                        (NodeField::Velocity, (n0..n0 + m).into()),
+                    ],
+                    &mut [&mut p, &mut v],
+                )?;
+            } else if known.len() == m {
+                v = known;
+            } else {
+                self.backend.read(NodeField::Velocity, n0..n0 + m, &mut v)?;
             }
-            self.backend.read(NodeField::Velocity, n0..n0 + m, &mut v)?;
         } else {
             p = vec![[0.0f32; 4]; m];
         }

@@ -27,6 +27,7 @@ use crate::puncture::{mean_cone_angle, TouchingOutcome};
 use crate::state::Phase;
 use crate::SimulationError;
 use glam::DVec3;
+use needlesim_core::math::Vec4;
 use needlesim_core::NodeField;
 
 /// Most needle node spacings a needle point may move in one step while in contact.
@@ -216,6 +217,7 @@ impl Simulation {
 
     /// The state machine: surface contact, puncture, node addition and removal.
     pub(super) fn contact(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimulationError> {
+        self.state.read_velocities.clear();
         let t = DVec3::from(now.direction());
         let tip = DVec3::from(now.tip());
         let v_tip = self.needle_velocity(prev, now, now.length());
@@ -288,13 +290,15 @@ impl Simulation {
     /// Tip past the far surface: only the Exit node is checked; the tip re-enters when
     /// pulled back behind it.
     fn exited(&mut self, now: &Needle, v_tip: DVec3) -> Result<(), SimulationError> {
-        let pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
-        let exit = *pos.last().expect("exit node");
+        let read = self.read_needle(&[]).map_err(|e| self.edit(e.into()))?;
+        let exit = *read.positions.last().expect("exit node");
         let d = (DVec3::from(now.tip()) - exit).dot(DVec3::from(now.direction()));
-        self.state.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
+        self.state.positions = read.positions.iter().map(|x| vec4(*x, 0.0)).collect();
         if d < 0.0 {
             self.remove().map_err(|e| self.edit(e))?;
             self.inside(now, v_tip)?;
+        } else {
+            self.state.read_velocities = read.velocities;
         }
         Ok(())
     }
@@ -310,7 +314,23 @@ impl Simulation {
         let base = DVec3::from(now.base());
         let advancing = v_tip.dot(t) > 0.0;
         let per_length = self.contact.per_length().is_some();
-        let mut pos = self.node_positions().map_err(|e| self.edit(e.into()))?;
+        // The far-side test for the needle nodes as they are: the corners of its candidate
+        // triangles come back with the nodes' positions and velocities in one readback.
+        // Both serve below while no edit changes the nodes (or the split triangles).
+        let prev_tip = DVec3::from(self.state.swept_from);
+        let query = match advancing {
+            true => {
+                let skip: Vec<u32> = self.state.nodes.iter().map(|n| n.index).collect();
+                let (p0, p1) = (prev_tip.to_array(), tip.to_array());
+                self.state.surface.crossing_query(p0, p1, false, &skip)
+            }
+            false => None,
+        };
+        let corners = query.as_ref().map_or(&[][..], |q| &q.corners[..]);
+        let read = self.read_needle(corners).map_err(|e| self.edit(e.into()))?;
+        let mut pos = read.positions;
+        // The velocities read, until the first edit.
+        let mut known = Some(read.velocities);
         let mut edited = false;
         let mut carried = None;
         let seeds = |nodes: &[NeedleNode]| -> Vec<u32> {
@@ -332,7 +352,7 @@ impl Simulation {
                 ShaftEdit::LiftTip => {
                     // Taken off to edit the shaft behind it: re-added below with its load.
                     if carried.is_none() {
-                        carried = Some(self.tip_load()?);
+                        carried = Some(self.tip_load(known.as_deref())?);
                     }
                     self.remove().map_err(|e| self.edit(e))?;
                     pos.pop();
@@ -347,7 +367,7 @@ impl Simulation {
                 ShaftEdit::AddShaft => {
                     let s = (pos[last] - base).dot(t) + h;
                     let x = at(now, s);
-                    let (v, state) = self.new_node_motion(has_tip, v_tip)?;
+                    let (v, state) = self.new_node_motion(has_tip, v_tip, known.as_deref())?;
                     let sd = seeds(&self.state.nodes);
                     self.add(NodeRole::Shaft, x, s, &sd, v, state)
                         .map_err(|e| self.edit(e))?;
@@ -384,6 +404,7 @@ impl Simulation {
                 ShaftEdit::Keep => break,
             }
             edited = true;
+            known = None;
         }
         let has_tip = self
             .state
@@ -396,7 +417,8 @@ impl Simulation {
             // with the per-length model, the tissue's velocity and its strain of the
             // tissue around it (its elastic offset), so the load ahead of the tip is
             // carried on, not released.
-            let (state, v, offset) = self.tip_load()?;
+            let (state, v, offset) = self.tip_load(known.take().as_deref())?;
+            edited = true;
             let v = if per_length { v } else { v_tip };
             let sd = seeds(&self.state.nodes);
             self.remove().map_err(|e| self.edit(e))?;
@@ -407,9 +429,18 @@ impl Simulation {
             pos.push(tip);
         }
         // The far side: the tip leaving the body through a surface triangle.
-        let prev_tip = DVec3::from(self.state.swept_from);
         if advancing {
-            if let Some((id, point)) = self.surface_crossing(prev_tip, tip, false)? {
+            let hit = match (edited, &query) {
+                (true, _) => self.surface_crossing(prev_tip, tip, false)?,
+                (false, Some(q)) => self
+                    .state
+                    .surface
+                    .crossing_at(q, &read.extra)
+                    .map(|(id, p)| (id, DVec3::from(p))),
+                (false, None) => None,
+            };
+            if let Some((id, point)) = hit {
+                known = None;
                 if self
                     .state
                     .nodes
@@ -424,19 +455,26 @@ impl Simulation {
                 self.state.phase = Phase::ExitTouching;
             }
         }
-        // What the needle nodes' positions are now, so that `constrain` need not read
-        // them back again.
+        // What the needle nodes' positions (and, without edits, velocities) are now, so
+        // that `constrain` need not read them back again.
         self.state.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
+        self.state.read_velocities = known.unwrap_or_default();
         Ok(())
     }
 
     /// What the Tip node (the last node) carries into its replacement: its friction state,
     /// velocity and, with the per-length model, its elastic offset (the paper's refresh
     /// places it strain-free).
-    fn tip_load(&mut self) -> Result<(FrictionState, DVec3, [f64; 3]), SimulationError> {
+    /// `known`: the needle nodes' velocities, if read since the last edit.
+    fn tip_load(
+        &mut self,
+        known: Option<&[Vec4]>,
+    ) -> Result<(FrictionState, DVec3, [f64; 3]), SimulationError> {
         let k = self.state.nodes.len() - 1;
         let state = self.state.nodes[k].friction;
-        let v = self.node_velocity(k).map_err(|e| self.edit(e.into()))?;
+        let v = self
+            .node_velocity(k, known)
+            .map_err(|e| self.edit(e.into()))?;
         let offset = if self.contact.per_length().is_some() {
             let index = self.state.nodes[k].index;
             self.editor
@@ -450,18 +488,21 @@ impl Simulation {
 
     /// Velocity and friction state of a Shaft node added inside: with the per-length
     /// model, the tissue's velocity at the tip (the Tip node's) and slipping; with the
-    /// paper's, the needle's and sticking.
+    /// paper's, the needle's and sticking. `known`: the needle nodes' velocities, if read
+    /// since the last edit.
     fn new_node_motion(
         &mut self,
         has_tip: bool,
         v_tip: DVec3,
+        known: Option<&[Vec4]>,
     ) -> Result<(DVec3, FrictionState), SimulationError> {
         if self.contact.per_length().is_none() {
             return Ok((v_tip, FrictionState::Stick));
         }
         let k = self.state.nodes.len() - 1;
         let v = if has_tip {
-            self.node_velocity(k).map_err(|e| self.edit(e.into()))?
+            self.node_velocity(k, known)
+                .map_err(|e| self.edit(e.into()))?
         } else {
             v_tip
         };
