@@ -14,7 +14,7 @@ use crate::scene::{
     DebunneParams, MassSpringParams, Material, PointBasedParams, ShapeMatchingParams,
 };
 use crate::tissue::Tissue;
-use glam::Mat3;
+use glam::{Mat3, Quat};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -233,24 +233,23 @@ impl Backend for CpuBackend {
                         );
                     }
                     Some(centre) => {
-                        for_each_chunk(
+                        for_each_node(
                             pool,
                             parallel,
                             &mut centre[..n],
                             &mut rotation[..n],
-                            |first, c, q| {
-                                local_shape_matching::cluster_frames(
-                                    first,
-                                    q,
+                            |i, c, q| {
+                                let (c_i, q_i) = local_shape_matching::cluster_frame(
+                                    i,
                                     pos,
                                     rest,
-                                    sv,
+                                    sv[i],
                                     nb,
                                     iters,
-                                    |k, c_k, _| {
-                                        c[k] = with_w(c_k, 0.0);
-                                    },
+                                    Quat::from_array(*q),
                                 );
+                                *c = with_w(c_i, 0.0);
+                                *q = q_i.to_array();
                             },
                         );
                         let (centre, rotation) = (&centre[..], &rotation[..]);
@@ -291,35 +290,33 @@ impl Backend for CpuBackend {
                         rotation,
                     }) => {
                         let (sv, iters) = (&shape_vector[..], *rotation_iterations);
-                        for_each_chunk(
+                        for_each_node(
                             pool,
                             parallel,
                             &mut first_pass[..n],
                             &mut rotation[..n],
-                            |first, out, q| {
-                                local_shape_matching::cluster_frames(
-                                    first,
-                                    q,
+                            |i, q, rot| {
+                                let (_, r) = local_shape_matching::cluster_frame(
+                                    i,
                                     pos,
                                     rest,
-                                    sv,
+                                    sv[i],
                                     nb,
                                     iters,
-                                    |k, _, r| {
-                                        let i = first + k;
-                                        out[k] = debunne_meshfree::first_pass(
-                                            i,
-                                            pos,
-                                            rest,
-                                            nb,
-                                            &a_inv[i],
-                                            rest[i][3],
-                                            lambda,
-                                            mu,
-                                            hg,
-                                            Some(&Mat3::from_quat(r)),
-                                        );
-                                    },
+                                    Quat::from_array(*rot),
+                                );
+                                *rot = r.to_array();
+                                *q = debunne_meshfree::first_pass(
+                                    i,
+                                    pos,
+                                    rest,
+                                    nb,
+                                    &a_inv[i],
+                                    rest[i][3],
+                                    lambda,
+                                    mu,
+                                    hg,
+                                    Some(&Mat3::from_quat(r)),
                                 );
                             },
                         );

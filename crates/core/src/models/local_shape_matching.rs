@@ -22,8 +22,10 @@
 //! the cost of a second pass and one more array (`cluster_centre`).
 //!
 //! Offsets from the node keep f32 round-off independent of where the tissue is, and the
-//! shape vector is computed with the same arithmetic as the kernel, so the rest state gives
-//! exactly zero force. The model is not momentum conserving (each cluster pulls only its own
+//! shape vector is computed with the same arithmetic as the slot-by-slot kernels (the GPU's,
+//! [`cluster_frame`]), so the rest state gives exactly zero force there; the CPU's
+//! four-lane per-node path ([`node_forces`]) sums in another order, so its rest force is
+//! f32 round-off. The model is not momentum conserving (each cluster pulls only its own
 //! node), as in the paper.
 //!
 //! Shape information: `rest_position` (x0, needed for A), `shape_vector` (v) and
@@ -37,12 +39,18 @@ use crate::neighbours::Neighbours;
 use glam::{Mat3, Quat, Vec3, Vec4 as Lanes4};
 
 /// Weighted mean of the neighbour offsets `d_j = p_j - p_i` over node i's cluster (the
-/// node itself has offset 0 and weight 1), summed as [`cluster_frame`] sums them, so that
-/// the rest state gives exactly zero force.
+/// node itself has offset 0 and weight 1), summed slot by slot as [`cluster_frame`] and the
+/// WGSL kernels sum, so that the rest state gives exactly zero force there.
 #[inline(always)]
 pub fn centre_offset(i: usize, p: &[Vec4], nb: &Neighbours) -> Vec3 {
-    let s = cluster_sums::<false>(i, p, p, nb);
-    s.sd * (1.0 / s.wsum)
+    let xi = xyz(p[i]);
+    let mut c = Vec3::ZERO;
+    let mut wsum = 1.0f32;
+    for (_, j, w) in nb.live(i) {
+        c += w * (xyz(p[j]) - xi);
+        wsum += w;
+    }
+    c * (1.0 / wsum)
 }
 
 /// Shape vector `v_i = -centre_offset(x0)` of node i (stored, w = 0).
@@ -159,7 +167,9 @@ fn cluster_sums<const FRAME: bool>(
 }
 
 /// Centre offset `c_i` and rotation `R_i` (as a quaternion, refined from the warm start
-/// `rotation`) of node i's cluster.
+/// `rotation`) of node i's cluster, slot by slot in the WGSL kernels' order (used by the
+/// cluster-force variant and co-rotated Debunne; [`cluster_frames`] is the four-node
+/// form the paper's per-node forces use).
 #[inline]
 pub fn cluster_frame(
     i: usize,
@@ -170,11 +180,31 @@ pub fn cluster_frame(
     iterations: u32,
     rotation: Quat,
 ) -> (Vec3, Quat) {
-    let (c, a) = cluster_matrix(i, positions, rest, shape_vector, nb);
+    let xi = xyz(positions[i]);
+    let x0i = xyz(rest[i]);
+    let mut s = ClusterSums {
+        sd: Vec3::ZERO,
+        wsum: 1.0,
+        sd0: Vec3::ZERO,
+        m: Mat3::ZERO,
+        sdd0: 0.0,
+    };
+    for (_, j, w) in nb.live(i) {
+        let d = xyz(positions[j]) - xi;
+        let d0 = xyz(rest[j]) - x0i;
+        let wd0 = w * d0;
+        s.sd += w * d;
+        s.sd0 += wd0;
+        s.m += outer(d, wd0);
+        s.sdd0 += wd0.dot(d0);
+        s.wsum += w;
+    }
+    let (c, a) = frame_matrix(s, shape_vector);
     (c, extract_rotation(&a, rotation, iterations))
 }
 
-/// Centre offset `c_i` and the scaled matrix `A_i` whose rotation [`cluster_frame`] takes.
+/// Centre offset `c_i` and the scaled matrix `A_i` of node i's cluster from the four-lane
+/// sums.
 #[inline(always)]
 fn cluster_matrix(
     i: usize,
@@ -183,22 +213,19 @@ fn cluster_matrix(
     shape_vector: Vec4,
     nb: &Neighbours,
 ) -> (Vec3, Mat3) {
-    // One pass over the cluster: with offsets d_j = x_j - x_i and d0_j = x0_j - x0_i
-    // (the node itself has d = d0 = 0, weight 1),
-    // A = sum w (d - c)(d0 - c0)^T = sum w d d0^T - c (sum w d0)^T.
-    let ClusterSums {
-        sd,
-        wsum,
-        sd0,
-        m,
-        sdd0,
-    } = cluster_sums::<true>(i, positions, rest, nb);
-    let c = sd * (1.0 / wsum);
+    frame_matrix(cluster_sums::<true>(i, positions, rest, nb), shape_vector)
+}
+
+/// `c = sum w d / W` and `A = (sum w d d0^T - c (sum w d0)^T) / sum w |d0 - c0|^2`, the
+/// matrix whose rotation the frame takes (the node itself has d = d0 = 0, weight 1).
+#[inline(always)]
+fn frame_matrix(s: ClusterSums, shape_vector: Vec4) -> (Vec3, Mat3) {
+    let c = s.sd * (1.0 / s.wsum);
     let c0 = -xyz(shape_vector);
     // sum w |d0 - c0|^2 = sum w |d0|^2 - 2 c0 . sum w d0 + W |c0|^2
-    let scale = sdd0 - 2.0 * c0.dot(sd0) + wsum * c0.dot(c0);
+    let scale = s.sdd0 - 2.0 * c0.dot(s.sd0) + s.wsum * c0.dot(c0);
     let inv = if scale > 0.0 { 1.0 / scale } else { 1.0 };
-    (c, (m - outer(c, sd0)) * inv)
+    (c, (s.m - outer(c, s.sd0)) * inv)
 }
 
 /// [`cluster_frame`] for the nodes `first..first + rotations.len()`, four at a time:
