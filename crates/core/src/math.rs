@@ -69,3 +69,15 @@ pub fn sqrt4(v: glam::Vec4) -> glam::Vec4 {
         v.sqrt()
     }
 }
+
+/// A small deterministic generator of f32 in [0, 1) (xorshift64) for the kernels' unit
+/// tests.
+#[cfg(test)]
+pub(crate) fn test_rng(mut seed: u64) -> impl FnMut() -> f32 {
+    move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    }
+}

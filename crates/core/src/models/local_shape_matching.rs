@@ -66,25 +66,20 @@ struct ClusterSums {
     sd: Vec3,
     /// `1 + sum w`.
     wsum: f32,
-    /// `sum w d0` (only with `FRAME`).
+    /// `sum w d0`.
     sd0: Vec3,
-    /// `sum w d d0^T` (only with `FRAME`).
+    /// `sum w d d0^T`.
     m: Mat3,
-    /// `sum w |d0|^2` (only with `FRAME`).
+    /// `sum w |d0|^2`.
     sdd0: f32,
 }
 
 /// [`ClusterSums`] four slots at a time: the neighbours' positions (and rest positions)
 /// are gathered into x, y, z lanes, an empty slot (weight 0) is masked to a zero offset,
 /// and the lanes are summed at the end, then the slots past the last group of four one by
-/// one. Without `FRAME` only `sd` and `wsum` are formed.
+/// one ([`slot_sums`]).
 #[inline(always)]
-fn cluster_sums<const FRAME: bool>(
-    i: usize,
-    positions: &[Vec4],
-    rest: &[Vec4],
-    nb: &Neighbours,
-) -> ClusterSums {
+fn cluster_sums(i: usize, positions: &[Vec4], rest: &[Vec4], nb: &Neighbours) -> ClusterSums {
     let k = nb.k;
     let row = i * k..(i + 1) * k;
     let (index, weight) = (&nb.index[row.clone()], &nb.weight[row]);
@@ -106,23 +101,21 @@ fn cluster_sums<const FRAME: bool>(
             sd[a] += w * d[a];
         }
         wsum += w;
-        if FRAME {
-            let r = gather4(rest, j);
-            let r = [r.x_axis, r.y_axis, r.z_axis];
-            let d0: [Lanes4; 3] = std::array::from_fn(|a| Lanes4::select(live, r[a] - x0[a], z));
-            let wd0 = d0.map(|c| w * c);
-            for a in 0..3 {
-                sd0[a] += wd0[a];
-                for b in 0..3 {
-                    m[a][b] += d[a] * wd0[b];
-                }
+        let r = gather4(rest, j);
+        let r = [r.x_axis, r.y_axis, r.z_axis];
+        let d0: [Lanes4; 3] = std::array::from_fn(|a| Lanes4::select(live, r[a] - x0[a], z));
+        let wd0 = d0.map(|c| w * c);
+        for a in 0..3 {
+            sd0[a] += wd0[a];
+            for b in 0..3 {
+                m[a][b] += d[a] * wd0[b];
             }
-            sdd0 += wd0[0] * d0[0] + wd0[1] * d0[1] + wd0[2] * d0[2];
         }
+        sdd0 += wd0[0] * d0[0] + wd0[1] * d0[1] + wd0[2] * d0[2];
     }
     let sum3 =
         |v: [Lanes4; 3]| Vec3::new(v[0].element_sum(), v[1].element_sum(), v[2].element_sum());
-    let mut out = ClusterSums {
+    let out = ClusterSums {
         sd: sum3(sd),
         wsum: 1.0 + wsum.element_sum(),
         sd0: sum3(sd0),
@@ -145,25 +138,37 @@ fn cluster_sums<const FRAME: bool>(
         ),
         sdd0: sdd0.element_sum(),
     };
+    slot_sums(i, 4 * groups..k, positions, rest, nb, out)
+}
+
+/// Adds the terms of node i's live slots `slots` (0-based within its row), one by one in
+/// slot order, to `acc`.
+#[inline(always)]
+fn slot_sums(
+    i: usize,
+    slots: std::ops::Range<usize>,
+    positions: &[Vec4],
+    rest: &[Vec4],
+    nb: &Neighbours,
+    mut acc: ClusterSums,
+) -> ClusterSums {
     let (xi, x0i) = (xyz(positions[i]), xyz(rest[i]));
-    for s in 4 * groups..k {
-        let w = weight[s];
+    for slot in slots.start + i * nb.k..slots.end + i * nb.k {
+        let w = nb.weight[slot];
         if w == 0.0 {
             continue;
         }
-        let j = index[s] as usize;
+        let j = nb.index[slot] as usize;
         let d = xyz(positions[j]) - xi;
-        out.sd += w * d;
-        out.wsum += w;
-        if FRAME {
-            let d0 = xyz(rest[j]) - x0i;
-            let wd0 = w * d0;
-            out.sd0 += wd0;
-            out.m += outer(d, wd0);
-            out.sdd0 += wd0.dot(d0);
-        }
+        let d0 = xyz(rest[j]) - x0i;
+        let wd0 = w * d0;
+        acc.sd += w * d;
+        acc.sd0 += wd0;
+        acc.m += outer(d, wd0);
+        acc.sdd0 += wd0.dot(d0);
+        acc.wsum += w;
     }
-    out
+    acc
 }
 
 /// Centre offset `c_i` and rotation `R_i` (as a quaternion, refined from the warm start
@@ -180,25 +185,14 @@ pub fn cluster_frame(
     iterations: u32,
     rotation: Quat,
 ) -> (Vec3, Quat) {
-    let xi = xyz(positions[i]);
-    let x0i = xyz(rest[i]);
-    let mut s = ClusterSums {
+    let start = ClusterSums {
         sd: Vec3::ZERO,
         wsum: 1.0,
         sd0: Vec3::ZERO,
         m: Mat3::ZERO,
         sdd0: 0.0,
     };
-    for (_, j, w) in nb.live(i) {
-        let d = xyz(positions[j]) - xi;
-        let d0 = xyz(rest[j]) - x0i;
-        let wd0 = w * d0;
-        s.sd += w * d;
-        s.sd0 += wd0;
-        s.m += outer(d, wd0);
-        s.sdd0 += wd0.dot(d0);
-        s.wsum += w;
-    }
+    let s = slot_sums(i, 0..nb.k, positions, rest, nb, start);
     let (c, a) = frame_matrix(s, shape_vector);
     (c, extract_rotation(&a, rotation, iterations))
 }
@@ -213,7 +207,7 @@ fn cluster_matrix(
     shape_vector: Vec4,
     nb: &Neighbours,
 ) -> (Vec3, Mat3) {
-    frame_matrix(cluster_sums::<true>(i, positions, rest, nb), shape_vector)
+    frame_matrix(cluster_sums(i, positions, rest, nb), shape_vector)
 }
 
 /// `c = sum w d / W` and `A = (sum w d d0^T - c (sum w d0)^T) / sum w |d0 - c0|^2`, the
@@ -378,17 +372,10 @@ mod tests {
 
     /// Random clouds and rows (empty slots included) for every K from 1 to 19: the
     /// four-lane sums match a slot-by-slot sum to f32 reordering (relative 1e-5 of the sum
-    /// of the terms' magnitudes), and the frame-free path gives the same `sd` and `wsum`
-    /// bits as the frame path (what makes the rest state exactly force-free).
+    /// of the terms' magnitudes).
     #[test]
     fn lane_sums_match_slot_by_slot_sums() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rnd = crate::math::test_rng(0x9e37_79b9_7f4a_7c15u64);
         let n = 40;
         let pos: Vec<Vec4> = (0..n).map(|_| [rnd(), rnd(), rnd(), 1.0]).collect();
         let rest: Vec<Vec4> = (0..n).map(|_| [rnd(), rnd(), rnd(), 1.0]).collect();
@@ -401,7 +388,7 @@ mod tests {
                 .collect();
             let nb = Neighbours { k, index, weight };
             for i in 0..n {
-                let got = cluster_sums::<true>(i, &pos, &rest, &nb);
+                let got = cluster_sums(i, &pos, &rest, &nb);
                 let (mut sd, mut sd0, mut m, mut sdd0, mut wsum) =
                     (Vec3::ZERO, Vec3::ZERO, Mat3::ZERO, 0.0f32, 1.0f32);
                 let mut mag = 0.0f32;
@@ -427,8 +414,6 @@ mod tests {
                     close(got.sdd0, sdd0) && close(got.wsum, wsum),
                     "K = {k}, node {i}"
                 );
-                let plain = cluster_sums::<false>(i, &pos, &rest, &nb);
-                assert_eq!((plain.sd, plain.wsum), (got.sd, got.wsum));
             }
         }
     }
@@ -438,13 +423,7 @@ mod tests {
     /// last group, and the same bits whatever the chunking.
     #[test]
     fn node_forces_match_node_force() {
-        let mut seed = 0x1234_5678_9abc_def1u64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rnd = crate::math::test_rng(0x1234_5678_9abc_def1u64);
         let n = 23;
         let k = 6;
         let rest: Vec<Vec4> = (0..n).map(|_| [rnd(), rnd(), rnd(), 1.0]).collect();

@@ -229,13 +229,7 @@ mod tests {
     /// above the ~K * 6e-8 a reordered f32 sum can differ by).
     #[test]
     fn lanes_match_the_scalar_force() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rnd = crate::math::test_rng(0x2545_f491_4f6c_dd1du64);
         let n = 50;
         let pos: Vec<Vec4> = (0..n).map(|_| [rnd(), rnd(), rnd(), 1.0]).collect();
         let vel: Vec<Vec4> = (0..n)
