@@ -195,13 +195,21 @@ impl Backend for CpuBackend {
                     spring_damping,
                     ..
                 }),
-                ShapeInfo::MassSpring { rest_length },
+                ShapeInfo::MassSpring {
+                    rest_length,
+                    node_material,
+                },
             ) => {
                 let (k, c) = (*stiffness as f32, *spring_damping as f32);
                 let rest_length = &rest_length[..];
-                map_nodes(pool, parallel, forces, |i| {
-                    mass_spring::force(i, pos, vel, nb, rest_length, k, c)
-                });
+                match node_material {
+                    None => map_nodes(pool, parallel, forces, |i| {
+                        mass_spring::force(i, pos, vel, nb, rest_length, k, c)
+                    }),
+                    Some(m) => map_nodes(pool, parallel, forces, |i| {
+                        mass_spring::force_mixed(i, pos, vel, nb, rest_length, m)
+                    }),
+                }
             }
             (
                 Material::LocalShapeMatching(ShapeMatchingParams {
@@ -214,12 +222,17 @@ impl Backend for CpuBackend {
                     shape_vector,
                     rotation,
                     cluster_centre,
+                    node_material,
                 },
             ) => {
                 let (k, iters) = (*stiffness as f32, *rotation_iterations);
                 let (rest, sv) = (&rest_position[..], &shape_vector[..]);
+                let material = node_material.as_deref();
                 match cluster_centre {
                     None => {
+                        // With a stiffness per node: the unit-stiffness force times k_s,i
+                        // (the same product as with one stiffness).
+                        let k = if material.is_some() { 1.0 } else { k };
                         for_each_chunk(
                             pool,
                             parallel,
@@ -229,6 +242,12 @@ impl Backend for CpuBackend {
                                 local_shape_matching::node_forces(
                                     first, f, q, pos, rest, sv, nb, k, iters,
                                 );
+                                if let Some(m) = material {
+                                    for (o, f) in f.iter_mut().enumerate() {
+                                        let k = m[first + o][0];
+                                        *f = [k * f[0], k * f[1], k * f[2], 0.0];
+                                    }
+                                }
                             },
                         );
                     }
@@ -253,10 +272,13 @@ impl Backend for CpuBackend {
                             },
                         );
                         let (centre, rotation) = (&centre[..], &rotation[..]);
-                        map_nodes(pool, parallel, forces, |j| {
-                            local_shape_matching::cluster_force(
+                        map_nodes(pool, parallel, forces, |j| match material {
+                            None => local_shape_matching::cluster_force(
                                 j, pos, rest, sv, nb, k, centre, rotation,
-                            )
+                            ),
+                            Some(m) => local_shape_matching::cluster_force_mixed(
+                                j, pos, rest, sv, nb, m, centre, rotation,
+                            ),
                         });
                     }
                 }
@@ -271,15 +293,20 @@ impl Backend for CpuBackend {
                     inverse_moment,
                     first_pass,
                     corotation,
+                    node_material,
                     ..
                 },
             ) => {
                 let c = mls::ContinuumConstants::of(&t.material).expect("Debunne material");
-                let (lambda, mu, hg) = (c.lambda, c.mu, c.hourglass);
+                let one = [c.lambda, c.mu, c.hourglass, 0.0];
+                let material = node_material.as_deref();
+                // `[lambda, mu, alpha mu]` of node i.
+                let constants = |i: usize| material.map_or(one, |m| m[i]);
                 let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
                 match corotation {
                     None => {
                         map_nodes(pool, parallel, &mut first_pass[..n], |i| {
+                            let [lambda, mu, hg, _] = constants(i);
                             debunne_meshfree::first_pass(
                                 i, pos, rest, nb, &a_inv[i], rest[i][3], lambda, mu, hg, None,
                             )
@@ -306,6 +333,7 @@ impl Backend for CpuBackend {
                                     Quat::from_array(*rot),
                                 );
                                 *rot = r.to_array();
+                                let [lambda, mu, hg, _] = constants(i);
                                 *q = debunne_meshfree::first_pass(
                                     i,
                                     pos,
@@ -333,12 +361,15 @@ impl Backend for CpuBackend {
                     rest_position,
                     inverse_moment,
                     first_pass,
+                    node_material,
                     ..
                 },
             ) => {
                 let c = mls::ContinuumConstants::of(&t.material).expect("point based material");
+                let material = node_material.as_deref();
                 let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
                 map_nodes(pool, parallel, &mut first_pass[..n], |i| {
+                    let c = material.map_or(c, |m| mls::ContinuumConstants::from_row(m[i]));
                     point_based::first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
                 });
                 let first = &first_pass[..];

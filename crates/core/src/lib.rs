@@ -30,6 +30,7 @@ pub mod integrator;
 pub mod math;
 pub mod models;
 pub mod neighbours;
+pub mod regions;
 pub mod scene;
 pub mod scene_builder;
 pub mod stability;

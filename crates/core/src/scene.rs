@@ -57,6 +57,9 @@ pub struct Scene {
     /// Surface loads (`[[load]]`).
     #[serde(default)]
     pub load: Vec<LoadSpec>,
+    /// Tissue regions with their own material (`[[region]]`, [`crate::regions`]).
+    #[serde(default)]
+    pub region: Vec<crate::regions::RegionSpec>,
     /// Initial deformation applied to the rest shape at the start.
     #[serde(default)]
     pub initial: Initial,
@@ -1330,46 +1333,8 @@ impl Scene {
                 }
             }
         }
-        match self.material {
-            Material::MassSpring(MassSpringParams {
-                stiffness,
-                spring_damping,
-                ..
-            }) => {
-                positive_finite("material.stiffness", stiffness)?;
-                non_negative_finite("material.spring_damping", spring_damping)?;
-            }
-            Material::LocalShapeMatching(ShapeMatchingParams {
-                stiffness,
-                rotation_iterations,
-                ..
-            }) => {
-                positive_finite("material.stiffness", stiffness)?;
-                rotation_iterations_in_range(rotation_iterations)?;
-            }
-            Material::DebunneMeshfree(DebunneParams {
-                young_modulus,
-                poisson_ratio,
-                rotation_iterations,
-                hourglass,
-                ..
-            }) => {
-                elastic_moduli(young_modulus, poisson_ratio)?;
-                rotation_iterations_in_range(rotation_iterations)?;
-                non_negative_finite("material.hourglass", hourglass)?;
-            }
-            Material::PointBased(PointBasedParams {
-                young_modulus,
-                poisson_ratio,
-                volume_stiffness,
-                hourglass,
-                ..
-            }) => {
-                elastic_moduli(young_modulus, poisson_ratio)?;
-                non_negative_finite("material.hourglass", hourglass)?;
-                non_negative_finite("material.volume_stiffness", volume_stiffness)?;
-            }
-        }
+        validate_material(&self.material, "material")?;
+        crate::regions::validate(self)?;
         let p = &self.physics;
         if let TimeStep::Seconds(dt) = p.dt {
             positive_finite("physics.dt", dt)?;
@@ -1432,21 +1397,66 @@ impl Scene {
     }
 }
 
-fn rotation_iterations_in_range(n: u32) -> Result<(), SceneError> {
+/// Checks the parameters of a material; errors name `{key}.<parameter>`.
+pub(crate) fn validate_material(material: &Material, key: &str) -> Result<(), SceneError> {
+    match *material {
+        Material::MassSpring(MassSpringParams {
+            stiffness,
+            spring_damping,
+            ..
+        }) => {
+            positive_finite(&format!("{key}.stiffness"), stiffness)?;
+            non_negative_finite(&format!("{key}.spring_damping"), spring_damping)?;
+        }
+        Material::LocalShapeMatching(ShapeMatchingParams {
+            stiffness,
+            rotation_iterations,
+            ..
+        }) => {
+            positive_finite(&format!("{key}.stiffness"), stiffness)?;
+            rotation_iterations_in_range(key, rotation_iterations)?;
+        }
+        Material::DebunneMeshfree(DebunneParams {
+            young_modulus,
+            poisson_ratio,
+            rotation_iterations,
+            hourglass,
+            ..
+        }) => {
+            elastic_moduli(key, young_modulus, poisson_ratio)?;
+            rotation_iterations_in_range(key, rotation_iterations)?;
+            non_negative_finite(&format!("{key}.hourglass"), hourglass)?;
+        }
+        Material::PointBased(PointBasedParams {
+            young_modulus,
+            poisson_ratio,
+            volume_stiffness,
+            hourglass,
+            ..
+        }) => {
+            elastic_moduli(key, young_modulus, poisson_ratio)?;
+            non_negative_finite(&format!("{key}.hourglass"), hourglass)?;
+            non_negative_finite(&format!("{key}.volume_stiffness"), volume_stiffness)?;
+        }
+    }
+    Ok(())
+}
+
+fn rotation_iterations_in_range(key: &str, n: u32) -> Result<(), SceneError> {
     if n == 0 || n > 100 {
         return Err(SceneError::invalid(
-            "material.rotation_iterations",
+            format!("{key}.rotation_iterations"),
             format!("must be between 1 and 100, got {n}"),
         ));
     }
     Ok(())
 }
 
-fn elastic_moduli(young_modulus: f64, poisson_ratio: f64) -> Result<(), SceneError> {
-    positive_finite("material.young_modulus", young_modulus)?;
+fn elastic_moduli(key: &str, young_modulus: f64, poisson_ratio: f64) -> Result<(), SceneError> {
+    positive_finite(&format!("{key}.young_modulus"), young_modulus)?;
     if !(poisson_ratio.is_finite() && poisson_ratio > -1.0 && poisson_ratio < 0.5) {
         return Err(SceneError::invalid(
-            "material.poisson_ratio",
+            format!("{key}.poisson_ratio"),
             format!(
                 "must lie strictly between -1 and 0.5 (0.5 is incompressible, which an \
                  explicit model cannot step), got {poisson_ratio}"

@@ -351,6 +351,7 @@ impl SceneBuilder {
             fixed: self.fixed,
             prescribed: self.prescribed,
             load: self.load,
+            region: Vec::new(),
             initial: self.initial,
             run: self.run,
             needle: self.needle,

@@ -6,8 +6,9 @@ use crate::boundary::{Boundary, HeldSet, LoadSet};
 use crate::error::{GeometryError, SceneError};
 use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
-use crate::models::{ArrayInfo, ShapeInfo};
+use crate::models::{material_row, ArrayInfo, ShapeInfo};
 use crate::neighbours::{Neighbours, MIN_LIVE_NEIGHBOURS};
+use crate::regions::Regions;
 use crate::scene::{MassSpringParams, Material, NodeMasses, Scene, SpringShare, TimeStep};
 use crate::state::NodeState;
 
@@ -34,8 +35,9 @@ pub struct Tissue {
     pub step: crate::integrator::StepParams,
     /// Mass of each mesh node in kg; they add up to `density * volume`.
     pub masses: Vec<f64>,
-    /// Mass in kg of a node the needle adds inside the tissue: an interior node's,
-    /// `density * spacing^3` (with `masses = "uniform"`, the mesh nodes' common mass).
+    /// Mass in kg of a node the needle adds inside the tissue of region 0: an interior
+    /// node's, `density * spacing^3` (with `masses = "uniform"`, the mesh nodes' common
+    /// mass); [`Regions::node_mass`] has it for every region.
     pub node_mass: f64,
     /// Volume enclosed by the surface in m^3.
     pub volume: f64,
@@ -43,6 +45,8 @@ pub struct Tissue {
     pub n_fixed: usize,
     /// Held node sets and surface loads.
     pub boundary: Boundary,
+    /// The regions and each mesh node's region ([`crate::regions`]).
+    pub regions: Regions,
 }
 
 impl Tissue {
@@ -85,21 +89,35 @@ impl Tissue {
             );
         }
         check_live_neighbours(scene, &neighbours, &cloud.positions)?;
+        let mut regions = crate::regions::classify(scene, &cloud.positions, cloud.spacing)?;
         let rho = scene.tissue.density;
         let (masses, node_mass) = match scene.tissue.masses {
             NodeMasses::Cell => (
                 cloud
                     .node_volumes
                     .iter()
-                    .map(|v| rho * v)
+                    .zip(&regions.of_node)
+                    .map(|(v, &r)| regions.densities[r as usize] * v)
                     .collect::<Vec<f64>>(),
                 rho * cloud.spacing.powi(3),
             ),
             NodeMasses::Uniform => {
-                let m = rho * cloud.volume / n as f64;
-                (vec![m; n], m)
+                let m = cloud.volume / n as f64;
+                (
+                    regions
+                        .of_node
+                        .iter()
+                        .map(|&r| regions.densities[r as usize] * m)
+                        .collect(),
+                    rho * m,
+                )
             }
         };
+        regions.node_mass = regions
+            .densities
+            .iter()
+            .map(|d| node_mass * d / rho)
+            .collect();
         // Masses and inverse masses are stored in f32: both must be normal f32 numbers
         // (a density of 1e300 would round the mass to infinity and freeze the body).
         let representable = |m: f64| {
@@ -133,6 +151,12 @@ impl Tissue {
                 volume: cloud.volume,
                 node_volumes: &cloud.node_volumes,
             },
+            regions.mixed().then(|| {
+                let rows: Vec<Vec4> = regions.materials.iter().map(material_row).collect();
+                let mut m: Vec<Vec4> = regions.of_node.iter().map(|&r| rows[r as usize]).collect();
+                m.resize(capacity, [0.0; 4]);
+                m
+            }),
         );
 
         // Initial deformation: scale the free nodes about their centroid.
@@ -173,6 +197,7 @@ impl Tissue {
             volume: cloud.volume,
             n_fixed,
             boundary,
+            regions,
         };
         if let TimeStep::Seconds(dt) = scene.physics.dt {
             tissue.step = crate::integrator::StepParams::new(dt, &scene.physics);

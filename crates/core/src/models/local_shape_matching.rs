@@ -356,6 +356,34 @@ pub fn cluster_force(
     with_w(stiffness * f, 0.0)
 }
 
+/// [`cluster_force`] with a stiffness per cluster (`material[i][0] = k_s,i`,
+/// [`super::material_row`]): `f_j = k_s,j (g_jj - x_j) + sum_i k_s,i w_ij (g_ij - x_j)`,
+/// the gradient of `sum_i k_s,i / 2 sum_j w_ij |g_ij - x_j|^2`.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn cluster_force_mixed(
+    j: usize,
+    positions: &[Vec4],
+    rest: &[Vec4],
+    shape_vectors: &[Vec4],
+    nb: &Neighbours,
+    material: &[Vec4],
+    centre: &[Vec4],
+    rotation: &[Vec4],
+) -> Vec4 {
+    let xj = xyz(positions[j]);
+    let x0j = xyz(rest[j]);
+    let own = quat_rotate(Quat::from_array(rotation[j]), xyz(shape_vectors[j]));
+    let mut f = material[j][0] * (xyz(centre[j]) + own);
+    for (_, i, w) in nb.live(j) {
+        let d = xyz(positions[i]) - xj;
+        let q0 = x0j - xyz(rest[i]);
+        let r = quat_rotate(Quat::from_array(rotation[i]), q0 + xyz(shape_vectors[i]));
+        f += (material[i][0] * w) * (d + xyz(centre[i]) + r);
+    }
+    with_w(f, 0.0)
+}
+
 /// Rotates v by the unit quaternion q: `v + 2 w (u x v) + 2 u x (u x v)`, `u` the vector
 /// part. This is the WGSL kernels' `quat_rotate`, kept instead of glam's `Quat * Vec3`
 /// (another formula, vectorised) so that the CPU reference rounds like the GPU kernels.

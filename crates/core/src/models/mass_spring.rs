@@ -185,6 +185,57 @@ pub fn force_scalar(
     with_w(f.into(), 0.0)
 }
 
+/// Series mean `2 a b / (a + b)` of two spring constants (0 when both are 0): the
+/// constant of a spring whose halves lie in two materials.
+#[inline(always)]
+pub fn series_mean(a: f32, b: f32) -> f32 {
+    let s = a + b;
+    if s > 0.0 {
+        2.0 * a * b / s
+    } else {
+        0.0
+    }
+}
+
+/// The force on node `i` with a material per node (`material[j] = [k_j, c_j, _, _]`,
+/// [`super::material_row`]): each spring takes the [`series_mean`] of its nodes' stiffness
+/// and damping, so the pair forces stay equal and opposite.
+#[inline]
+pub fn force_mixed(
+    i: usize,
+    positions: &[Vec4],
+    velocities: &[Vec4],
+    nb: &Neighbours,
+    rest_length: &[f32],
+    material: &[Vec4],
+) -> Vec4 {
+    let xi = xyz_a(positions[i]);
+    let vi = xyz_a(velocities[i]);
+    let [ki, ci, _, _] = material[i];
+    let mut f = Vec3A::ZERO;
+    for slot in i * nb.k..(i + 1) * nb.k {
+        let w = nb.weight[slot];
+        if w == 0.0 {
+            continue;
+        }
+        let j = nb.index[slot] as usize;
+        let d = xyz_a(positions[j]) - xi;
+        let len = d.length();
+        if len <= 0.0 {
+            continue;
+        }
+        let (k, c) = (
+            series_mean(ki, material[j][0]),
+            series_mean(ci, material[j][1]),
+        );
+        let inv = 1.0 / len;
+        let dv = xyz_a(velocities[j]) - vi;
+        let mag = w * (k * (len - rest_length[slot]) + c * dv.dot(d) * inv) * inv;
+        f += mag * d;
+    }
+    with_w(f.into(), 0.0)
+}
+
 /// Sum of the spring forces of node `i`'s slots `slots` (0-based within its row).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]

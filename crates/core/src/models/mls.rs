@@ -47,6 +47,17 @@ pub struct ContinuumConstants {
 }
 
 impl ContinuumConstants {
+    /// The constants of point based animation's `node_material` row
+    /// `[lambda, mu, k_v, alpha mu]` ([`super::material_row`]).
+    pub fn from_row(row: Vec4) -> ContinuumConstants {
+        ContinuumConstants {
+            lambda: row[0],
+            mu: row[1],
+            volume_stiffness: row[2],
+            hourglass: row[3],
+        }
+    }
+
     /// The constants of a Debunne or point based material; `None` for the other models.
     pub fn of(material: &crate::scene::Material) -> Option<ContinuumConstants> {
         use crate::scene::{lame, DebunneParams, Material, PointBasedParams};

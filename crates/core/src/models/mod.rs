@@ -34,6 +34,8 @@ pub enum ShapeArray {
     InverseMoment,
     /// The continuum models' per-step first-pass result.
     FirstPass,
+    /// Per-node material parameters ([`material_row`]), only with several materials.
+    NodeMaterial,
 }
 
 impl ShapeArray {
@@ -47,6 +49,7 @@ impl ShapeArray {
             ShapeArray::ClusterCentre => "cluster_centre",
             ShapeArray::InverseMoment => "inverse_moment",
             ShapeArray::FirstPass => "first_pass",
+            ShapeArray::NodeMaterial => "node_material",
         }
     }
 }
@@ -64,6 +67,8 @@ pub enum ShapeInfo {
     MassSpring {
         /// `capacity * K` rest lengths in metres.
         rest_length: Vec<f32>,
+        /// Per-node `[k, c, 0, 0]` with several materials ([`material_row`]).
+        node_material: Option<Vec<Vec4>>,
     },
     /// Local shape matching: rest positions, shape vectors and warm-start rotations.
     LocalShapeMatching {
@@ -75,6 +80,8 @@ pub enum ShapeInfo {
         rotation: Vec<Vec4>,
         /// Cluster centre offsets c_i of the current step (`cluster` variant only).
         cluster_centre: Option<Vec<Vec4>>,
+        /// Per-node `[k_s, 0, 0, 0]` with several materials ([`material_row`]).
+        node_material: Option<Vec<Vec4>>,
     },
     /// Debunne meshfree linear elasticity: rest positions, inverse moment matrices, the
     /// per-step first-pass result, plus the shape matching frame when co-rotated.
@@ -90,6 +97,8 @@ pub enum ShapeInfo {
         first_pass: Vec<[f32; 12]>,
         /// Shape vectors and warm-start rotations (`corotated = true` only).
         corotation: Option<Corotation>,
+        /// Per-node `[lambda, mu, alpha mu, 0]` with several materials ([`material_row`]).
+        node_material: Option<Vec<Vec4>>,
     },
     /// Point based animation: rest positions and volumes, inverse moment matrices and the
     /// per-step first-pass result.
@@ -103,7 +112,27 @@ pub enum ShapeInfo {
         volume_rule: NodeVolumes,
         /// First-pass result of the current step ([`mls::pack_first_pass`]).
         first_pass: Vec<[f32; 12]>,
+        /// Per-node `[lambda, mu, k_v, alpha mu]` with several materials ([`material_row`]).
+        node_material: Option<Vec<Vec4>>,
     },
+}
+
+/// A node's material parameters as the kernels read them from the `node_material` array
+/// (f32, in the units of the scene): mass-spring `[k, c, 0, 0]`; shape matching
+/// `[k_s, 0, 0, 0]`; Debunne `[lambda, mu, alpha mu, 0]`; point based animation
+/// `[lambda, mu, k_v, alpha mu]`.
+pub fn material_row(material: &Material) -> Vec4 {
+    match material {
+        Material::MassSpring(p) => [p.stiffness as f32, p.spring_damping as f32, 0.0, 0.0],
+        Material::LocalShapeMatching(p) => [p.stiffness as f32, 0.0, 0.0, 0.0],
+        Material::DebunneMeshfree(_) | Material::PointBased(_) => {
+            let c = mls::ContinuumConstants::of(material).expect("continuum material");
+            match material {
+                Material::PointBased(_) => [c.lambda, c.mu, c.volume_stiffness, c.hourglass],
+                _ => [c.lambda, c.mu, c.hourglass, 0.0],
+            }
+        }
+    }
 }
 
 /// The shape matching frame used to co-rotate the Debunne model.
@@ -130,16 +159,21 @@ pub struct BuildContext<'a> {
 /// (shared or mutable), so that [`ShapeInfo::bytes`] and [`ShapeInfo::bytes_mut`] list the
 /// same arrays.
 macro_rules! named_arrays {
-    ($self:expr, $cast:path, $slice:ident) => {
-        match $self {
-            ShapeInfo::MassSpring { rest_length } => {
-                vec![(ShapeArray::RestLength, $cast(rest_length.$slice()))]
-            }
+    ($self:expr, $cast:path, $slice:ident) => {{
+        let (mut v, node_material) = match $self {
+            ShapeInfo::MassSpring {
+                rest_length,
+                node_material,
+            } => (
+                vec![(ShapeArray::RestLength, $cast(rest_length.$slice()))],
+                node_material,
+            ),
             ShapeInfo::LocalShapeMatching {
                 rest_position,
                 shape_vector,
                 rotation,
                 cluster_centre,
+                node_material,
             } => {
                 let mut v = vec![
                     (ShapeArray::RestPosition, $cast(rest_position.$slice())),
@@ -149,13 +183,14 @@ macro_rules! named_arrays {
                 if let Some(c) = cluster_centre {
                     v.push((ShapeArray::ClusterCentre, $cast(c.$slice())));
                 }
-                v
+                (v, node_material)
             }
             ShapeInfo::DebunneMeshfree {
                 rest_position,
                 inverse_moment,
                 first_pass,
                 corotation,
+                node_material,
                 ..
             } => {
                 let mut v = vec![
@@ -167,20 +202,28 @@ macro_rules! named_arrays {
                     v.push((ShapeArray::ShapeVector, $cast(c.shape_vector.$slice())));
                     v.push((ShapeArray::Rotation, $cast(c.rotation.$slice())));
                 }
-                v
+                (v, node_material)
             }
             ShapeInfo::PointBased {
                 rest_position,
                 inverse_moment,
                 first_pass,
+                node_material,
                 ..
-            } => vec![
-                (ShapeArray::RestPosition, $cast(rest_position.$slice())),
-                (ShapeArray::InverseMoment, $cast(inverse_moment.$slice())),
-                (ShapeArray::FirstPass, $cast(first_pass.$slice())),
-            ],
+            } => (
+                vec![
+                    (ShapeArray::RestPosition, $cast(rest_position.$slice())),
+                    (ShapeArray::InverseMoment, $cast(inverse_moment.$slice())),
+                    (ShapeArray::FirstPass, $cast(first_pass.$slice())),
+                ],
+                node_material,
+            ),
+        };
+        if let Some(m) = node_material {
+            v.push((ShapeArray::NodeMaterial, $cast(m.$slice())));
         }
-    };
+        v
+    }};
 }
 
 /// Name and size of one allocated array.
@@ -201,6 +244,7 @@ impl ShapeInfo {
         nb: &Neighbours,
         n: usize,
         ctx: BuildContext,
+        node_material: Option<Vec<Vec4>>,
     ) -> ShapeInfo {
         let capacity = rest.len();
         let rest_position =
@@ -215,6 +259,7 @@ impl ShapeInfo {
         match material {
             Material::MassSpring(_) => ShapeInfo::MassSpring {
                 rest_length: mass_spring::rest_lengths(rest, nb, n),
+                node_material,
             },
             Material::LocalShapeMatching(ShapeMatchingParams { forces, .. }) => {
                 let rest_position = rest_position();
@@ -225,6 +270,7 @@ impl ShapeInfo {
                     rotation: vec![QUAT_IDENTITY; capacity],
                     cluster_centre: (*forces == ShapeMatchingForces::Cluster)
                         .then(|| vec![[0.0; 4]; capacity]),
+                    node_material,
                 }
             }
             Material::DebunneMeshfree(DebunneParams {
@@ -246,6 +292,7 @@ impl ShapeInfo {
                     volume_rule: *node_volumes,
                     first_pass: vec![[0.0; 12]; capacity],
                     corotation,
+                    node_material,
                 }
             }
             Material::PointBased(PointBasedParams { node_volumes, .. }) => {
@@ -258,6 +305,7 @@ impl ShapeInfo {
                     ),
                     volume_rule: *node_volumes,
                     first_pass: vec![[0.0; 12]; capacity],
+                    node_material,
                 }
             }
         }
@@ -288,6 +336,20 @@ impl ShapeInfo {
         }
         let r0 = [rest[i][0], rest[i][1], rest[i][2], 0.0];
         let mut out = Vec::new();
+        // A new node takes the material of its nearest neighbour at rest.
+        if let (true, Some(m)) = (rest_position, self.node_material()) {
+            let d = |j: usize| {
+                let (a, b) = (rest[i], rest[j]);
+                (0..3).map(|c| (a[c] - b[c]) * (a[c] - b[c])).sum::<f32>()
+            };
+            let nearest = nb
+                .live(i)
+                .map(|(_, j, _)| j)
+                .min_by(|&a, &b| d(a).total_cmp(&d(b)).then(a.cmp(&b)));
+            if let Some(j) = nearest {
+                out.push(row(ShapeArray::NodeMaterial, i, &[m[j]]));
+            }
+        }
         if rest_position && matches!(self, ShapeInfo::LocalShapeMatching { .. }) {
             out.push(row(ShapeArray::RestPosition, i, &[r0]));
         }
@@ -384,6 +446,16 @@ impl ShapeInfo {
                 Some(rest_position[..n].iter().map(|p| p[3]).collect())
             }
             _ => None,
+        }
+    }
+
+    /// The per-node material rows, when the tissue has several materials.
+    pub fn node_material(&self) -> Option<&[Vec4]> {
+        match self {
+            ShapeInfo::MassSpring { node_material, .. }
+            | ShapeInfo::LocalShapeMatching { node_material, .. }
+            | ShapeInfo::DebunneMeshfree { node_material, .. }
+            | ShapeInfo::PointBased { node_material, .. } => node_material.as_deref(),
         }
     }
 
