@@ -10,9 +10,11 @@ use std::path::{Path, PathBuf};
 /// Column names of `needle_force.csv`. `depth_m` is the tip's distance past the point
 /// where it first touched the surface, along the needle (negative before contact, from the
 /// start tip if it never touched); `axial_force_n` is positive when the tissue resists
-/// insertion and negative when it resists extraction.
+/// insertion and negative when it resists extraction. `state` is `touching` also while
+/// the tip dents an inner membrane; `region` is the tissue region the tip is in (empty
+/// while it is not inside).
 pub const NEEDLE_CSV_HEADER: &str =
-    "step,time_s,depth_m,axial_force_n,lateral_force_n,state,active_nodes,needle_nodes";
+    "step,time_s,depth_m,axial_force_n,lateral_force_n,state,active_nodes,needle_nodes,region";
 
 fn state_name(s: PunctureState) -> &'static str {
     match s {
@@ -60,7 +62,7 @@ impl NeedleCsv {
         for s in &h[from..] {
             writeln!(
                 self.out,
-                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{}",
+                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{}",
                 s.step,
                 s.time,
                 sim.depth_of(s.tip, s.direction),
@@ -68,7 +70,10 @@ impl NeedleCsv {
                 s.force.lateral,
                 state_name(s.state),
                 s.active_nodes,
-                s.needle_nodes
+                s.needle_nodes,
+                s.region
+                    .and_then(|r| sim.region_names().get(r as usize))
+                    .map_or("", |n| n.as_str())
             )?;
         }
         self.written = sim.history().last().map(|s| s.step).or(self.written);

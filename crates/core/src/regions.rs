@@ -462,6 +462,23 @@ pub fn classify(scene: &Scene, rest: &[[f64; 3]], h: f64) -> Result<Regions, Sce
         .map(|r| load_shape(scene, r))
         .collect::<Result<_, _>>()?;
     let eps = 1e-6 * h;
+    // Two boxes that share a volume overlap even where no node lies in it.
+    for (b, sb) in shapes.iter().enumerate() {
+        for (a, sa) in shapes[..b].iter().enumerate() {
+            if let (Shape::Box(l0, h0), Shape::Box(l1, h1)) = (sa, sb) {
+                if (0..3).all(|c| h0[c].min(h1[c]) - l0[c].max(l1[c]) > eps) {
+                    return Err(SceneError::invalid(
+                        format!("{}.geometry", region_key(&scene.region[b])),
+                        format!(
+                            "overlaps region `{}`: the boxes share a volume; regions may \
+                             touch but not overlap",
+                            scene.region[a].name
+                        ),
+                    ));
+                }
+            }
+        }
+    }
     let mut count = vec![0usize; shapes.len()];
     for (i, p) in rest.iter().enumerate() {
         let mut owner: Option<usize> = None;

@@ -116,7 +116,13 @@ impl Tissue {
         regions.node_mass = regions
             .densities
             .iter()
-            .map(|d| node_mass * d / rho)
+            .map(|&d| {
+                if d == rho {
+                    node_mass
+                } else {
+                    node_mass * d / rho
+                }
+            })
             .collect();
         // Masses and inverse masses are stored in f32: both must be normal f32 numbers
         // (a density of 1e300 would round the mass to infinity and freeze the body).

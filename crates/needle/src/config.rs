@@ -71,6 +71,53 @@ pub struct NeedleConfig {
     pub keyframe: Vec<Keyframe>,
 }
 
+/// What a region's membrane (its boundary, met by the crack front from another region)
+/// does to the needle tip.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Membrane {
+    /// No membrane: the tip cuts on into the region with the region's cutting force.
+    None,
+    /// The tip dents the membrane (the crack front sticks to it) until its axial force on
+    /// the tissue exceeds this many N, then punctures it.
+    Force(f64),
+    /// Never punctured (bone, a hard capsule): the tip pushes the region ahead of it and
+    /// the force is the region's contact force.
+    Impenetrable,
+}
+
+/// The needle's parameters in one tissue region, from its `[[region]]` table's `needle`
+/// table; what is not given is the `[needle]` table's.
+///
+/// ```toml
+/// [[region]]
+/// name = "ligament"
+/// # ...
+/// needle = { puncture_force = 4.0, cutting = 0.6, friction = { coefficient = 0.3, grip = 120.0 } }
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegionNeedle {
+    /// Friction per unit length in the region (the grip is resolved against the region's
+    /// material when not given).
+    pub friction: FrictionModel,
+    /// Cutting force at the tip while it cuts the region, N.
+    pub cutting: f64,
+    /// The region's membrane.
+    pub membrane: Membrane,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RegionNeedleKeys {
+    #[serde(default)]
+    puncture_force: Option<f64>,
+    #[serde(default)]
+    impenetrable: bool,
+    #[serde(default)]
+    cutting: Option<f64>,
+    #[serde(default)]
+    friction: Option<toml::Value>,
+}
+
 fn default_tip_refresh() -> f64 {
     0.1
 }
@@ -161,6 +208,86 @@ impl NeedleConfig {
         self.script()
             .map_err(|e| SceneError::invalid(format!("needle.keyframe[{}]", e.index), e.reason))?;
         Ok(())
+    }
+
+    /// The needle's parameters in region `name` from its `needle` table (`None`: the
+    /// `[needle]` table's, with no membrane). Errors name `region[name].needle.<key>`.
+    pub fn region(
+        &self,
+        name: &str,
+        table: Option<&toml::Table>,
+    ) -> Result<RegionNeedle, SceneError> {
+        let key = format!("region[{name}].needle");
+        let mut out = RegionNeedle {
+            friction: self.friction,
+            cutting: self.cutting,
+            membrane: Membrane::None,
+        };
+        let Some(table) = table else {
+            return Ok(out);
+        };
+        let k: RegionNeedleKeys =
+            toml::Value::Table(table.clone())
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    SceneError::invalid(&key, e.to_string().trim_end().replace('\n', " "))
+                })?;
+        if let Some(f) = k.friction {
+            if !matches!(self.friction, FrictionModel::PerLength(_)) {
+                return Err(SceneError::invalid(
+                    format!("{key}.friction"),
+                    "friction per region needs the per-length model in [needle]",
+                ));
+            }
+            out.friction = FrictionModel::from_value(&f)
+                .map_err(|(k2, why)| SceneError::invalid(k2.replacen("needle", &key, 1), why))?;
+            match &out.friction {
+                FrictionModel::PerLength(p) => p.validate(),
+                FrictionModel::Paper(p) => p.validate(),
+            }
+            .map_err(|(k2, why)| SceneError::invalid(k2.replacen("needle", &key, 1), why))?;
+            if !matches!(out.friction, FrictionModel::PerLength(_)) {
+                return Err(SceneError::invalid(
+                    format!("{key}.friction.model"),
+                    "a region's friction must be the per-length model",
+                ));
+            }
+        }
+        if let Some(c) = k.cutting {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(SceneError::invalid(
+                    format!("{key}.cutting"),
+                    format!("must be a finite number >= 0 (N), got {c}"),
+                ));
+            }
+            out.cutting = c;
+        }
+        out.membrane = match (k.puncture_force, k.impenetrable) {
+            (Some(_), true) => {
+                return Err(SceneError::invalid(
+                    format!("{key}.impenetrable"),
+                    "an impenetrable region has no puncture force: give one of the two",
+                ))
+            }
+            (Some(f), false) if !(f.is_finite() && f > 0.0) => {
+                return Err(SceneError::invalid(
+                    format!("{key}.puncture_force"),
+                    format!("must be a finite number > 0 (N), got {f}"),
+                ))
+            }
+            (Some(f), false) => Membrane::Force(f),
+            (None, true) => Membrane::Impenetrable,
+            (None, false) => Membrane::None,
+        };
+        let layered = out.membrane != Membrane::None || out.cutting > 0.0;
+        if layered && !matches!(out.friction, FrictionModel::PerLength(_)) {
+            return Err(SceneError::invalid(
+                key,
+                "membranes and cutting need the per-length friction model (the paper's model \
+                 has no crack front)",
+            ));
+        }
+        Ok(out)
     }
 
     /// The start pose.

@@ -32,6 +32,10 @@ pub struct NeedleNode {
     pub axial: f64,
     /// The static limit of that force forward in the last step (per-length model), N.
     pub limit: f64,
+    /// The tissue region the node was added in (that of its nearest neighbour at rest);
+    /// its friction is that region's.
+    #[serde(default)]
+    pub region: u16,
 }
 
 /// The force the tissue exerts on the needle in one step.
@@ -65,4 +69,8 @@ pub struct NeedleSample {
     pub active_nodes: usize,
     /// Needle nodes.
     pub needle_nodes: usize,
+    /// The tissue region the tip is in ([`crate::Simulation::tip_region`]); `None` before
+    /// the entry surface is punctured and once the tip is out.
+    #[serde(default)]
+    pub region: Option<u16>,
 }

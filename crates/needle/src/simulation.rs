@@ -48,6 +48,7 @@ mod snapshot;
 pub use insertion::MAX_STEP_SPACINGS;
 pub use prepare::Prepared;
 
+use crate::config::Membrane;
 use crate::friction::{FrictionModel, PerLengthFriction};
 use crate::needle::Needle;
 use crate::node_editor::{EditError, NodeEditor};
@@ -61,13 +62,23 @@ use needlesim_core::boundary::{Boundary, Reaction};
 use needlesim_core::math::Vec4;
 use needlesim_core::{Backend, NodeField, SimError, Stepper};
 
-/// The needle parameters a step uses, resolved from the scene.
+/// The needle's parameters in one tissue region, resolved from the scene.
 #[derive(Debug, Clone, Copy)]
-struct Contact {
+struct Layer {
     friction: FrictionModel,
     /// Grip of the per-length model, N/m.
     grip: f64,
     cutting: f64,
+    membrane: Membrane,
+}
+
+/// The needle parameters a step uses, resolved from the scene.
+#[derive(Debug, Clone)]
+struct Contact {
+    /// The `[needle]` table's friction model (per-length or the paper's, for all regions).
+    friction: FrictionModel,
+    /// Per region (region 0 first): friction, grip, cutting force and membrane.
+    layers: Vec<Layer>,
     thresholds: Thresholds,
     puncture_force: Option<f64>,
     /// Tip travel between two Tip node refreshes, m.
@@ -96,6 +107,11 @@ pub struct Simulation {
     rest: Vec<[f64; 3]>,
     state: NeedleState,
     fingerprint: Vec<(String, u64)>,
+    /// Region of every mesh node.
+    node_region: Vec<u16>,
+    region_names: Vec<String>,
+    /// Inverse mass of a needle node in each region, 1/kg.
+    region_inv_mass: Vec<f32>,
 }
 
 /// What [`Simulation::read_needle`] reads.
@@ -153,7 +169,11 @@ impl Simulation {
     /// The puncture state: where the tip is (Outside also past the far surface, with the
     /// shaft still in the tissue: see [`Simulation::needle_nodes`]).
     pub fn state(&self) -> PunctureState {
-        self.state.puncture_state()
+        match (self.state.phase, self.state.denting) {
+            // Denting an inner membrane: pressing on it, not through.
+            (Phase::Inside, Some(_)) => PunctureState::Touching,
+            _ => self.state.puncture_state(),
+        }
     }
 
     /// Whether the tip has left the body through its far surface (state Outside with the
@@ -162,9 +182,37 @@ impl Simulation {
         matches!(self.state.phase, Phase::ExitTouching | Phase::Exited)
     }
 
-    /// The grip per unit length of the per-length friction model, N/m (0 for the paper's).
+    /// The grip per unit length of the per-length friction model in region 0, N/m (0 for
+    /// the paper's); [`Simulation::region_grip`] for the others.
     pub fn grip(&self) -> f64 {
-        self.contact.grip
+        self.contact.layers[0].grip
+    }
+
+    /// The grip per unit length in region `region`, N/m (`None` for an unknown region).
+    pub fn region_grip(&self, region: u16) -> Option<f64> {
+        self.contact.layers.get(region as usize).map(|l| l.grip)
+    }
+
+    /// Names of the tissue regions, region 0 (`"tissue"`, nodes in no `[[region]]`) first.
+    pub fn region_names(&self) -> &[String] {
+        &self.region_names
+    }
+
+    /// The region the tip is in: the last membrane the crack front punctured, or where
+    /// the tip is pulled back to; `None` while the tip is not inside.
+    pub fn tip_region(&self) -> Option<u16> {
+        match self.state.phase {
+            Phase::Inside => self.state.region,
+            _ => None,
+        }
+    }
+
+    /// The region whose membrane the tip is denting, not yet punctured.
+    pub fn denting(&self) -> Option<u16> {
+        match self.state.phase {
+            Phase::Inside => self.state.denting,
+            _ => None,
+        }
     }
 
     /// The needle nodes, oldest first.
@@ -346,6 +394,7 @@ impl Simulation {
                 state: self.state(),
                 active_nodes: self.backend.n_active(),
                 needle_nodes: self.state.nodes.len(),
+                region: self.tip_region(),
             };
             self.state.history.push(sample);
             self.trim_history();
@@ -392,6 +441,33 @@ impl Simulation {
         let mut v = [[0.0f32; 4]];
         self.backend.read(NodeField::Velocity, i..i + 1, &mut v)?;
         Ok(xyz(v[0]))
+    }
+
+    /// Inverse mass of needle node `n` (its region's density times an interior node's
+    /// volume).
+    fn inv_mass_of(&self, n: &NeedleNode) -> f32 {
+        self.region_inv_mass[n.region as usize]
+    }
+
+    /// The region of node `index` just added: that of its nearest live neighbour at rest
+    /// (a mesh node's, or a needle node's own).
+    fn region_of_added(&self, index: u32) -> u16 {
+        let nb = self.editor.neighbours();
+        let x = DVec3::from(self.rest_of(index));
+        let nearest = nb.live(index as usize).map(|(_, j, _)| j).min_by(|&a, &b| {
+            let d = |j: usize| (DVec3::from(self.rest_of(j as u32)) - x).length_squared();
+            d(a).total_cmp(&d(b)).then(a.cmp(&b))
+        });
+        match nearest {
+            Some(j) if j < self.node_region.len() => self.node_region[j],
+            Some(j) => self
+                .state
+                .nodes
+                .iter()
+                .find(|n| n.index as usize == j)
+                .map_or(0, |n| n.region),
+            None => 0,
+        }
     }
 
     fn rest_of(&self, v: u32) -> [f64; 3] {

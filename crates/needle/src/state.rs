@@ -64,6 +64,13 @@ pub(crate) struct NeedleState {
     pub cut_depth: f64,
     /// Axial force of the pinned (Surface or Exit) node on the needle in the last step, N.
     pub pinned_axial: f64,
+    /// The region the crack front has cut into (the last membrane punctured); `None`
+    /// while the tip is not inside.
+    #[serde(default)]
+    pub region: Option<u16>,
+    /// The region whose membrane the crack front is denting, not yet punctured.
+    #[serde(default)]
+    pub denting: Option<u16>,
     /// The force on the needle in the last step.
     pub force: NeedleForce,
     pub history: Vec<NeedleSample>,
@@ -92,6 +99,8 @@ impl NeedleState {
             entry: None,
             cut_depth: f64::NEG_INFINITY,
             pinned_axial: 0.0,
+            region: None,
+            denting: None,
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,

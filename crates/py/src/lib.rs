@@ -399,6 +399,21 @@ impl PySimulation {
         state_name(self.lock().state())
     }
 
+    /// The tissue region the tip is in (a `[[region]]` name, or "tissue" for the nodes in
+    /// none), or None while the tip is not inside.
+    #[getter]
+    fn tip_region(&self) -> Option<String> {
+        let sim = self.lock();
+        sim.tip_region()
+            .and_then(|r| sim.region_names().get(r as usize).cloned())
+    }
+
+    /// Names of the tissue regions, "tissue" (the nodes in no `[[region]]`) first.
+    #[getter]
+    fn regions(&self) -> Vec<String> {
+        self.lock().region_names().to_vec()
+    }
+
     /// Force of the tissue on the needle in the last step: {"axial": N (positive resists
     /// insertion), "lateral": N, "total": array (3,)}.
     #[getter]
@@ -447,7 +462,8 @@ impl PySimulation {
     }
 
     /// Every step's needle record as numpy arrays: step, time, depth (m past the first
-    /// contact), axial, lateral (N), active_nodes, needle_nodes, and state (list of str).
+    /// contact), axial, lateral (N), active_nodes, needle_nodes, and state and region
+    /// (lists of str; region is the tissue region the tip is in, "" when not inside).
     /// `clear=True` also empties the record (stream a long run to disk chunk by chunk).
     #[pyo3(signature = (clear=false))]
     fn history<'py>(&self, py: Python<'py>, clear: bool) -> PyResult<Bound<'py, PyDict>> {
@@ -487,6 +503,16 @@ impl PySimulation {
         )?;
         let states: Vec<&str> = h.iter().map(|s| state_name(s.state)).collect();
         d.set_item("state", states)?;
+        let names = sim.region_names();
+        let regions: Vec<&str> = h
+            .iter()
+            .map(|s| {
+                s.region
+                    .and_then(|r| names.get(r as usize))
+                    .map_or("", |n| n.as_str())
+            })
+            .collect();
+        d.set_item("region", regions)?;
         Ok(d)
     }
 

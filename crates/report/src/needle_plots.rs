@@ -11,22 +11,46 @@ use std::path::{Path, PathBuf};
 /// The force plot files, by name, in a run's output folder.
 pub const NEEDLE_PLOT_FILES: [&str; 2] = ["needle_force.png", "needle_force_time.png"];
 
-/// One row of `needle_force.csv`: time (s), depth (m), axial and lateral force (N).
-fn parse(text: &str) -> Result<Vec<[f64; 4]>, String> {
+/// The rows of `needle_force.csv`: time (s), depth (m), axial and lateral force (N), and
+/// the row indices where the tip entered a new region (a puncture: the region column
+/// changes to another non-empty name).
+fn parse(text: &str) -> Result<(Vec<[f64; 4]>, Vec<usize>), String> {
     let mut lines = text.lines();
     if lines.next() != Some(NEEDLE_CSV_HEADER) {
         return Err("not a needle_force.csv (unexpected header)".into());
     }
-    lines
-        .enumerate()
-        .map(|(k, line)| {
-            let c: Vec<&str> = line.split(',').collect();
-            let v = |i: usize| -> Result<f64, String> {
-                c.get(i)
-                    .and_then(|s| s.parse().ok())
-                    .ok_or_else(|| format!("line {}: column {} is not a number", k + 2, i + 1))
-            };
-            Ok([v(1)?, v(2)?, v(3)?, v(4)?])
+    let mut rows = Vec::new();
+    let mut punctures = Vec::new();
+    let mut region = String::new();
+    for (k, line) in lines.enumerate() {
+        let c: Vec<&str> = line.split(',').collect();
+        let v = |i: usize| -> Result<f64, String> {
+            c.get(i)
+                .and_then(|s| s.parse().ok())
+                .ok_or_else(|| format!("line {}: column {} is not a number", k + 2, i + 1))
+        };
+        rows.push([v(1)?, v(2)?, v(3)?, v(4)?]);
+        let r = c.get(8).copied().unwrap_or("");
+        if !r.is_empty() && r != region {
+            punctures.push(k);
+        }
+        if !r.is_empty() || c.get(5) == Some(&"outside") {
+            region = r.to_string();
+        }
+    }
+    Ok((rows, punctures))
+}
+
+/// Vertical marks at `x(row)` for the puncture rows, spanning the force range.
+fn marks(rows: &[[f64; 4]], punctures: &[usize], x: &dyn Fn(&[f64; 4]) -> f64) -> Vec<(f64, f64)> {
+    let (lo, hi) = rows.iter().fold((0.0f64, 0.0f64), |(a, b), r| {
+        (a.min(r[2]).min(r[3]), b.max(r[2]).max(r[3]))
+    });
+    punctures
+        .iter()
+        .flat_map(|&k| {
+            let x = x(&rows[k]);
+            [(x, lo), (x, hi), (f64::NAN, f64::NAN)]
         })
         .collect()
 }
@@ -35,14 +59,19 @@ fn parse(text: &str) -> Result<Vec<[f64; 4]>, String> {
 /// paths.
 pub fn needle_plots(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     let csv = dir.join("needle_force.csv");
-    let rows = parse(&std::fs::read_to_string(&csv)?).map_err(|e| {
+    let (rows, punctures) = parse(&std::fs::read_to_string(&csv)?).map_err(|e| {
         std::io::Error::new(
             std::io::ErrorKind::InvalidData,
             format!("{}: {e}", csv.display()),
         )
     })?;
-    let series = |x: &dyn Fn(&[f64; 4]) -> f64| -> [Series<'static>; 2] {
+    let series = |x: &dyn Fn(&[f64; 4]) -> f64| -> [Series<'static>; 3] {
         [
+            Series {
+                label: "puncture (tip enters a region)",
+                colour: [150, 150, 150],
+                points: marks(&rows, &punctures, x),
+            },
             Series {
                 label: "axial",
                 colour: [200, 40, 40],
@@ -89,12 +118,15 @@ mod tests {
         for k in 0..200 {
             let t = k as f64 * 1e-3;
             csv.push_str(&format!(
-                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4\n",
+                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4,{}\n",
                 t * 0.01 - 1e-4,
                 (t * 30.0).sin(),
-                0.1 * t
+                0.1 * t,
+                if k < 100 { "skin" } else { "fat" }
             ));
         }
+        let (rows, punctures) = parse(&csv).unwrap();
+        assert_eq!((rows.len(), punctures), (200, vec![0, 100]));
         std::fs::write(dir.path().join("needle_force.csv"), csv).unwrap();
         let files = needle_plots(dir.path()).unwrap();
         assert_eq!(files.len(), 2);

@@ -59,7 +59,6 @@ impl Simulation {
             p = vec![[0.0f32; 4]; m];
         }
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
-        let inv_mass = self.editor.inverse_mass();
         for k in 0..m {
             let node = self.state.nodes[k];
             if self.kinematic(&node) {
@@ -72,7 +71,7 @@ impl Simulation {
                 let x = at(now, s);
                 let vn = self.needle_velocity(prev, now, s);
                 let own = xyz(v[k]).dot(t) - vn.dot(t);
-                p[k] = vec4(x, inv_mass);
+                p[k] = vec4(x, self.inv_mass_of(&node));
                 v[k] = vec4(vn + t * own, 0.0);
             }
         }

@@ -19,6 +19,7 @@
 //! holding the tissue it is in) stops the run with [`SimulationError::NodesLost`].
 
 use super::{at, vec4, Simulation};
+use crate::config::Membrane;
 use crate::friction::FrictionState;
 use crate::needle::Needle;
 use crate::node_editor::EditError;
@@ -106,6 +107,7 @@ impl Simulation {
             &cand,
             offset,
         )?;
+        let region = self.region_of_added(index);
         self.state.nodes.push(NeedleNode {
             index,
             role,
@@ -113,6 +115,7 @@ impl Simulation {
             s,
             axial: 0.0,
             limit: 0.0,
+            region,
         });
         Ok(())
     }
@@ -127,6 +130,8 @@ impl Simulation {
                 .surface
                 .unsplit(|v| editor.rest_position(v as usize).map(|x| x as f64));
             self.state.phase = if node.role == NodeRole::Surface {
+                self.state.region = None;
+                self.state.denting = None;
                 Phase::Outside
             } else {
                 Phase::Inside
@@ -251,7 +256,14 @@ impl Simulation {
                 let corners = c.map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]);
                 let angle = mean_cone_angle(pinned.to_array(), corners, t.to_array());
                 let mut outcome = self.contact.thresholds.touching(angle);
-                if let Some(f) = self.contact.puncture_force {
+                // Entering, the membrane of the region touched rules if it has one.
+                let pinned_region = self.state.nodes.last().map_or(0, |n| n.region) as usize;
+                let threshold = match (exit, self.contact.layers[pinned_region].membrane) {
+                    (false, Membrane::Force(f)) => Some(f),
+                    (false, Membrane::Impenetrable) => Some(f64::INFINITY),
+                    _ => self.contact.puncture_force,
+                };
+                if let Some(f) = threshold {
                     outcome = match outcome {
                         TouchingOutcome::Release => TouchingOutcome::Release,
                         _ if self.state.pinned_axial > f => TouchingOutcome::Puncture,
@@ -269,6 +281,8 @@ impl Simulation {
                     }
                     (TouchingOutcome::Puncture, false) => {
                         self.state.phase = Phase::Inside;
+                        self.state.region = Some(pinned_region as u16);
+                        self.state.denting = None;
                         self.state.nodes[0].friction = FrictionState::Slip;
                         self.state.cut_depth = self.depth_of(now.tip(), now.direction());
                         self.inside(now, v_tip)?;

@@ -8,6 +8,7 @@
 //! stands for the shaft length [`shaft_lengths`] gives it.
 
 use super::{vec4, xyz, Simulation};
+use crate::config::Membrane;
 use crate::friction::{
     paper_dynamic_friction, paper_next_state, per_length_step, split, AxialStep, FrictionModel,
     FrictionState, Limits,
@@ -78,6 +79,21 @@ impl Simulation {
                 Phase::Inside => (0..m).max_by(|&a, &b| s[a].total_cmp(&s[b])).unwrap_or(0),
                 _ => usize::MAX,
             };
+            // The crack front meeting another region: a membrane to dent and puncture, or
+            // none to cross (pulled back or re-advancing in its track, no membrane).
+            if front < m {
+                let r = self.state.nodes[front].region;
+                let current = self.state.region.unwrap_or(r);
+                self.state.denting = None;
+                if r != current {
+                    match self.contact.layers[r as usize].membrane {
+                        Membrane::Force(_) | Membrane::Impenetrable if cutting => {
+                            self.state.denting = Some(r);
+                        }
+                        _ => self.state.region = Some(r),
+                    }
+                }
+            }
             let params = *self.stepper.params();
             let gravity = DVec3::from(params.gravity.map(|g| g as f64));
             for k in 0..m {
@@ -92,28 +108,46 @@ impl Simulation {
                 }
                 let (axial, normal) = split(fe.to_array(), t.to_array());
                 let normal = DVec3::from(normal);
-                let phi = match self.contact.friction {
-                    FrictionModel::PerLength(pl) => {
-                        let load = self.contact.grip * lengths[k] + normal.length();
+                let layer = self.contact.layers[node.region as usize];
+                let phi = match (self.contact.friction, layer.friction) {
+                    (FrictionModel::PerLength(_), FrictionModel::PerLength(pl)) => {
+                        let load = layer.grip * lengths[k] + normal.length();
                         let mut lim = Limits::symmetric(
                             pl.static_coefficient() * load,
                             pl.coefficient * load,
                             pl.viscous * lengths[k],
                         );
                         if k == front && cutting {
-                            lim.static_forward += self.contact.cutting;
-                            lim.kinetic_forward += self.contact.cutting;
+                            // Cutting, or denting the membrane ahead (infinite: never
+                            // punctured).
+                            let ahead = match self
+                                .state
+                                .denting
+                                .map(|r| self.contact.layers[r as usize].membrane)
+                            {
+                                Some(Membrane::Force(f)) => f,
+                                Some(Membrane::Impenetrable) => f64::INFINITY,
+                                _ => layer.cutting,
+                            };
+                            lim.static_forward += ahead;
+                            lim.kinetic_forward += ahead;
                         }
                         let step = AxialStep {
                             elastic: axial,
                             velocity: vk.dot(t),
                             needle_velocity: vn.dot(t),
-                            mass: 1.0 / self.editor.inverse_mass() as f64,
+                            mass: 1.0 / self.inv_mass_of(&node) as f64,
                             dt: self.stepper.dt(),
                             damping_factor: params.damping_factor as f64,
                             gravity: gravity.dot(t),
                         };
                         let (state, phi) = per_length_step(node.friction, &step, &lim);
+                        if k == front && state == FrictionState::Slip && phi > 0.0 {
+                            // The membrane gave: punctured.
+                            if let Some(r) = self.state.denting.take() {
+                                self.state.region = Some(r);
+                            }
+                        }
                         let n = &mut self.state.nodes[k];
                         n.limit = lim.static_forward;
                         if state != node.friction {
@@ -125,7 +159,7 @@ impl Simulation {
                         }
                         phi
                     }
-                    FrictionModel::Paper(pp) => {
+                    (FrictionModel::Paper(pp), _) | (_, FrictionModel::Paper(pp)) => {
                         if self.kinematic(&node) && node.role == NodeRole::Tip {
                             total += fe;
                             continue;
@@ -154,10 +188,9 @@ impl Simulation {
             }
             self.backend.write(NodeField::Force, n0, &f)?;
             // A node that started to slip this step moves under its force from now on.
-            let inv_mass = self.editor.inverse_mass();
             for k in released {
                 let mut q = p[k];
-                q[3] = inv_mass;
+                q[3] = self.inv_mass_of(&self.state.nodes[k]);
                 self.backend.write(NodeField::Position, n0 + k, &[q])?;
             }
         }

@@ -1,8 +1,9 @@
 //! Preparing a needle scene: the tissue with slots for the needle nodes, the needle's
 //! parameters resolved against the mesh (node spacing, grip), then the start on a backend.
 
-use super::{Contact, Simulation};
+use super::{Contact, Layer, Simulation};
 use crate::checkpoint::{fingerprint, Checkpoint};
+use crate::config::Membrane;
 use crate::config::NeedleConfig;
 use crate::friction::{grip_from_modulus, FrictionModel, PerLengthFriction};
 use crate::needle::Needle;
@@ -20,7 +21,7 @@ pub struct Prepared {
     editor: NodeEditor,
     config: Option<NeedleConfig>,
     spacing: f64,
-    grip: f64,
+    layers: Vec<Layer>,
     rest: Vec<[f64; 3]>,
     physics: Physics,
     fingerprint: Vec<(String, u64)>,
@@ -57,8 +58,7 @@ impl Prepared {
                 c.script().ok().flatten(),
                 Contact {
                     friction: c.friction,
-                    grip: self.grip,
-                    cutting: c.cutting,
+                    layers: self.layers.clone(),
                     thresholds: c.thresholds,
                     puncture_force: c.puncture_force,
                     refresh: c.tip_refresh * self.spacing,
@@ -69,8 +69,7 @@ impl Prepared {
                 None,
                 Contact {
                     friction: FrictionModel::default(),
-                    grip: 0.0,
-                    cutting: 0.0,
+                    layers: self.layers.clone(),
                     thresholds: Default::default(),
                     puncture_force: None,
                     refresh: 0.1 * self.spacing,
@@ -84,7 +83,13 @@ impl Prepared {
         // Prescribed displacements hold from the start (a ramp starts at zero).
         stepper.start(backend.as_mut())?;
         let surface = SurfaceSplits::new(triangles, &self.rest, 2.0 * self.spacing);
+        let regions = &self.tissue.regions;
+        let (node_region, region_names) = (regions.of_node.clone(), regions.names.clone());
+        let region_inv_mass = regions.node_mass.iter().map(|m| (1.0 / m) as f32).collect();
         Ok(Simulation {
+            region_inv_mass,
+            node_region,
+            region_names,
             backend,
             stepper,
             editor: self.editor,
@@ -130,27 +135,35 @@ fn check_start_outside(
     Ok(())
 }
 
-/// The grip per unit length (N/m) of the per-length friction model: the scene's
-/// `friction.grip`, or from the material's Young's modulus (for mass-spring and shape
-/// matching, the one their calibrated stiffness gives at the mesh spacing `h`).
-fn resolve_grip(scene: &Scene, c: &NeedleConfig, h: f64) -> Result<f64, SceneError> {
-    let FrictionModel::PerLength(PerLengthFriction { grip, .. }) = c.friction else {
+/// The grip per unit length (N/m) of the per-length friction model `friction` in a
+/// region of `material`: the given `grip`, or from the material's Young's modulus (for
+/// mass-spring and shape matching, the one their calibrated stiffness gives at the mesh
+/// spacing `h`). `key` is the friction table's key for errors.
+fn resolve_grip(
+    scene: &Scene,
+    material: &Material,
+    friction: &FrictionModel,
+    radius: f64,
+    h: f64,
+    key: &str,
+) -> Result<f64, SceneError> {
+    let FrictionModel::PerLength(PerLengthFriction { grip, .. }) = friction else {
         return Ok(0.0);
     };
     if let Some(g) = grip {
-        return Ok(g);
+        return Ok(*g);
     }
     use needlesim_core::calibration::calibration;
     let k = scene.tissue.neighbours;
     let uncalibrated = |e: needlesim_core::calibration::UncalibratedNeighbours| {
         SceneError::invalid(
-            "needle.friction.grip",
+            format!("{key}.grip"),
             format!("cannot be derived from this material's stiffness ({e}); give it in N/m"),
         )
     };
     // Mass-spring's lattice Poisson ratio is about 1/4; cluster shape matching's lateral
     // contraction is about 0 (docs/report).
-    let (young, nu) = match scene.material {
+    let (young, nu) = match *material {
         Material::DebunneMeshfree(p) => (p.young_modulus, p.poisson_ratio),
         Material::PointBased(p) => (p.young_modulus, p.poisson_ratio),
         Material::MassSpring(p) => {
@@ -167,7 +180,49 @@ fn resolve_grip(scene: &Scene, c: &NeedleConfig, h: f64) -> Result<f64, SceneErr
             (p.stiffness / (c * h), 0.0)
         }
     };
-    Ok(grip_from_modulus(young, nu, c.radius))
+    Ok(grip_from_modulus(young, nu, radius))
+}
+
+/// The needle's parameters in every region of `tissue` (region 0 from `[needle]`).
+fn resolve_layers(
+    scene: &Scene,
+    tissue: &Tissue,
+    c: Option<&NeedleConfig>,
+    h: f64,
+) -> Result<Vec<Layer>, SceneError> {
+    let regions = &tissue.regions;
+    let Some(c) = c else {
+        let none = Layer {
+            friction: FrictionModel::default(),
+            grip: 0.0,
+            cutting: 0.0,
+            membrane: Membrane::None,
+        };
+        return Ok(vec![none; regions.names.len()]);
+    };
+    (0..regions.names.len())
+        .map(|r| {
+            let name = &regions.names[r];
+            let rn = c.region(name, regions.needle[r].as_ref())?;
+            let key = match &regions.needle[r] {
+                Some(t) if t.contains_key("friction") => format!("region[{name}].needle.friction"),
+                _ => "needle.friction".to_string(),
+            };
+            Ok(Layer {
+                friction: rn.friction,
+                grip: resolve_grip(
+                    scene,
+                    &regions.materials[r],
+                    &rn.friction,
+                    c.radius,
+                    h,
+                    &key,
+                )?,
+                cutting: rn.cutting,
+                membrane: rn.membrane,
+            })
+        })
+        .collect()
 }
 
 impl Simulation {
@@ -192,13 +247,9 @@ impl Simulation {
             .as_ref()
             .and_then(|c| c.spacing)
             .unwrap_or(mesh_spacing);
-        let grip = match &config {
-            Some(c) => {
-                c.check_radius(spacing)?;
-                resolve_grip(scene, c, mesh_spacing)?
-            }
-            None => 0.0,
-        };
+        if let Some(c) = &config {
+            c.check_radius(spacing)?;
+        }
         if let Some(c) = &config {
             let key = if c.spacing.is_some() {
                 "needle.spacing"
@@ -214,6 +265,7 @@ impl Simulation {
         }
         let extra = config.as_ref().map_or(0, |c| c.node_slots(spacing));
         let tissue = Tissue::from_cloud(scene, cloud, extra)?;
+        let layers = resolve_layers(scene, &tissue, config.as_ref(), mesh_spacing)?;
         let editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
         let fingerprint = fingerprint(scene, &tissue.state.positions);
         Ok(Prepared {
@@ -222,7 +274,7 @@ impl Simulation {
             editor,
             config,
             spacing,
-            grip,
+            layers,
             rest,
             physics: scene.physics,
         })

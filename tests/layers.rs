@@ -1,0 +1,422 @@
+//! Layered tissue (`[[region]]`): per-region materials against the series-spring
+//! solution, a needle puncturing each layer's membrane in turn and extracted with every
+//! array restored bitwise (each model), an impenetrable layer, and bad region input.
+
+use needlesim::core::regions::BASE_REGION;
+use needlesim::needle::{PunctureState, Simulation};
+use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
+use std::path::Path;
+
+/// A 32 x 16 x 16 mm block, nodes `h` = 4 mm apart, held on its far face (x = 32 mm), in
+/// three layers along x: `outer` 0-8 mm, `middle` 8-16 mm, `deep` 16-32 mm. The
+/// membranes sit between node planes: 10 mm (middle) and 18 mm (deep).
+const H: f64 = 0.004;
+
+/// Material tables of the base material and the three layers, for a model.
+fn materials(model: &str) -> (String, [String; 3]) {
+    let (base, layer) = match model {
+        "mass_spring" => (
+            "model = \"mass_spring\"\nstiffness = 40.0",
+            ["stiffness = 60.0", "stiffness = 15.0", "stiffness = 40.0"],
+        ),
+        "local_shape_matching" => (
+            "model = \"local_shape_matching\"\nstiffness = 40.0\nforces = \"cluster\"",
+            ["stiffness = 60.0", "stiffness = 15.0", "stiffness = 40.0"],
+        ),
+        "point_based" => (
+            "model = \"point_based\"\nyoung_modulus = 20000.0\npoisson_ratio = 0.3\nhourglass = 4.0",
+            [
+                "young_modulus = 30000.0, poisson_ratio = 0.3",
+                "young_modulus = 8000.0, poisson_ratio = 0.3",
+                "young_modulus = 20000.0, poisson_ratio = 0.3",
+            ],
+        ),
+        _ => (
+            "model = \"debunne_meshfree\"\nyoung_modulus = 20000.0\npoisson_ratio = 0.3\ncorotated = true\nhourglass = 4.0",
+            [
+                "young_modulus = 30000.0, poisson_ratio = 0.3",
+                "young_modulus = 8000.0, poisson_ratio = 0.3",
+                "young_modulus = 20000.0, poisson_ratio = 0.3",
+            ],
+        ),
+    };
+    (base.to_string(), layer.map(String::from))
+}
+
+/// The layered block with a needle inserted along +x through the middle of the entry
+/// face to 26 mm at 20 mm/s, held, and pulled out; `membranes` the puncture forces of
+/// `outer`, `middle` and `deep` (as TOML values, `""` for none).
+fn layered(model: &str, membranes: [&str; 3]) -> String {
+    let (base, layer) = materials(model);
+    let names = ["outer", "middle", "deep"];
+    let spans = [(-0.001, 0.008), (0.008, 0.016), (0.016, 0.033)];
+    let mut regions = String::new();
+    for k in 0..3 {
+        let membrane = match membranes[k] {
+            "" => String::new(),
+            "impenetrable" => "impenetrable = true, ".into(),
+            f => format!("puncture_force = {f}, "),
+        };
+        regions.push_str(&format!(
+            "[[region]]\nname = \"{}\"\ngeometry = {{ kind = \"box\", min = [{}, -0.001, -0.001], max = [{}, 0.017, 0.017] }}\n\
+             material = {{ {} }}\nneedle = {{ {membrane}cutting = {} }}\n\n",
+            names[k],
+            spans[k].0,
+            spans[k].1,
+            layer[k],
+            [0.2, 0.05, 0.1][k],
+        ));
+    }
+    format!(
+        "[tissue]\ndensity = 1000.0\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.032, 0.016, 0.016], spacing = {H} }}\n\n\
+         [material]\n{base}\n\n[physics]\ndt = 2e-4\ndamping = 6.0\n\n[[fixed]]\naxis = \"x\"\nabove = 0.0319\n\n\
+         {regions}\
+         [needle]\nbase = [-0.1, 0.0081, 0.0079]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.1\nradius = 0.0005\n\
+         friction = {{ coefficient = 0.3, grip = 20.0 }}\n\n\
+         [[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.02\nduration = 1.3\n\n\
+         [[needle.keyframe]]\naction = \"pause\"\nduration = 0.2\n\n\
+         [[needle.keyframe]]\naction = \"extract\"\nspeed = 0.02\nduration = 1.4\n"
+    )
+}
+
+fn scene(text: &str) -> Scene {
+    Scene::from_toml_str(text, Path::new(".")).unwrap()
+}
+
+fn cpu_sim(scene: &Scene) -> Simulation {
+    let prep = Simulation::prepare(scene).unwrap();
+    let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
+    prep.start(Box::new(b)).unwrap()
+}
+
+/// Where the tip first entered each region while advancing: `(region name, depth m,
+/// history index)`.
+fn entries(sim: &Simulation) -> Vec<(String, f64, usize)> {
+    let mut out: Vec<(String, f64, usize)> = Vec::new();
+    for (k, s) in sim.history().iter().enumerate() {
+        if let Some(r) = s.region {
+            let name = &sim.region_names()[r as usize];
+            if out.last().is_none_or(|e| &e.0 != name) && !out.iter().any(|e| &e.0 == name) {
+                out.push((name.clone(), sim.depth_of(s.tip, s.direction), k));
+            }
+        }
+    }
+    out
+}
+
+/// For every model: the tip punctures `outer` (the entry surface), then the membranes of
+/// `middle` and `deep` in that order, each within one node spacing of its rest depth
+/// (10 and 18 mm; the tip meets a region when its nearest node at rest is in it), each
+/// announced by a Touching phase and followed by a drop of the force; the tip region is
+/// reported back out to `outer`; after full extraction every neighbour row, shape array
+/// (the per-node materials included) and surface triangle is bitwise as at the start.
+#[test]
+fn the_needle_punctures_each_layer_in_turn_and_extraction_restores_every_array() {
+    for model in [
+        "debunne_meshfree",
+        "point_based",
+        "mass_spring",
+        "local_shape_matching",
+    ] {
+        let scene = scene(&layered(model, ["1.0", "0.5", "0.5"]));
+        let mut sim = cpu_sim(&scene);
+        assert!(
+            sim.editor().shape().node_material().is_some(),
+            "{model}: three materials need per-node rows"
+        );
+        let (nb, shape, tri) = (
+            sim.editor().neighbours().clone(),
+            sim.editor().shape().clone(),
+            sim.triangles().to_vec(),
+        );
+        let steps = (sim.script_duration() / sim.dt()).round() as u64 + 50;
+        sim.step_n(steps).unwrap();
+        let e = entries(&sim);
+        let names: Vec<&str> = e.iter().map(|e| e.0.as_str()).collect();
+        assert_eq!(names, ["outer", "middle", "deep"], "{model}: {e:?}");
+        let h = sim.history();
+        for (k, (name, depth, at)) in e.iter().enumerate().skip(1) {
+            let membrane = [0.0, 0.010, 0.018][k];
+            assert!(
+                (depth - membrane).abs() <= H,
+                "{model}: {name} entered at depth {depth} m, membrane at {membrane} m"
+            );
+            assert_eq!(
+                h[at - 1].state,
+                PunctureState::Touching,
+                "{model}: no dent before {name}"
+            );
+            // The peak over the dent, then the force 20 steps (0.4 mm) after the puncture.
+            let peak = h[at.saturating_sub(200)..*at]
+                .iter()
+                .map(|s| s.force.axial)
+                .fold(f64::MIN, f64::max);
+            let after = h[at + 20].force.axial;
+            assert!(
+                after < peak - 0.2,
+                "{model}: {name}: force {after} N after the puncture, peak {peak} N"
+            );
+        }
+        // Pulled back, the tip is reported in the layers it passes.
+        let back: Vec<Option<u16>> = h
+            .iter()
+            .filter(|s| s.time > 1.6 && s.region.is_some())
+            .map(|s| s.region)
+            .collect();
+        assert_eq!(
+            back.last().copied().flatten(),
+            sim.region_names()
+                .iter()
+                .position(|n| n == "outer")
+                .map(|r| r as u16),
+            "{model}"
+        );
+        assert_eq!(sim.state(), PunctureState::Outside, "{model}");
+        assert_eq!(sim.needle_nodes().len(), 0, "{model}");
+        assert!(
+            sim.editor().neighbours() == &nb,
+            "{model}: neighbour rows differ"
+        );
+        assert!(
+            sim.editor().shape() == &shape,
+            "{model}: shape arrays differ"
+        );
+        assert_eq!(sim.triangles(), &tri[..], "{model}");
+    }
+}
+
+/// The friction slope changes at each layer: with the grip 4x larger in `middle` than in
+/// `outer` and `deep`, the force grows faster per mm while the shaft adds length in
+/// `middle` than before it.
+#[test]
+fn each_layer_has_its_own_friction() {
+    let text = layered("debunne_meshfree", ["", "", ""]).replace(
+        "needle = { cutting = 0.05 }",
+        "needle = { cutting = 0.05, friction = { coefficient = 0.3, grip = 80.0 } }",
+    );
+    let mut sim = cpu_sim(&scene(&text));
+    sim.step_n((1.2 / sim.dt()) as u64).unwrap();
+    let h = sim.history();
+    // Mean slope of the force against depth over a depth window, N/m.
+    let slope = |a: f64, b: f64| {
+        let pts: Vec<(f64, f64)> = h
+            .iter()
+            .map(|s| (sim.depth_of(s.tip, s.direction), s.force.axial))
+            .filter(|p| p.0 >= a && p.0 <= b)
+            .collect();
+        let n = pts.len() as f64;
+        let (mx, my) = pts
+            .iter()
+            .fold((0.0, 0.0), |m, p| (m.0 + p.0 / n, m.1 + p.1 / n));
+        let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+        let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+        sxy / sxx
+    };
+    let (outer, middle) = (slope(0.003, 0.008), slope(0.012, 0.017));
+    eprintln!("friction slopes: outer {outer:.1} N/m, middle {middle:.1} N/m");
+    // Expected about 0.3 * 20 = 6 N/m of shaft in outer, plus 0.3 * 80 = 24 N/m in middle.
+    assert!(middle > 2.0 * outer.max(1.0), "{outer} {middle}");
+}
+
+/// An impenetrable `deep` layer (a bone, a hard capsule): the tip never enters it, and
+/// the force keeps rising as the needle presses on.
+#[test]
+fn an_impenetrable_layer_stops_the_tip() {
+    let text = layered("debunne_meshfree", ["1.0", "0.5", "impenetrable"]);
+    let mut sim = cpu_sim(&scene(&text));
+    sim.step_n((1.1 / sim.dt()) as u64).unwrap();
+    let h = sim.history();
+    let deep = sim.region_names().iter().position(|n| n == "deep").unwrap() as u16;
+    assert!(h.iter().all(|s| s.region != Some(deep)));
+    assert_eq!(
+        sim.state(),
+        PunctureState::Touching,
+        "pressing on the layer"
+    );
+    let force_at = |depth: f64| {
+        h.iter()
+            .find(|s| sim.depth_of(s.tip, s.direction) >= depth)
+            .map(|s| s.force.axial)
+            .unwrap()
+    };
+    assert!(
+        force_at(0.021) > force_at(0.018) + 0.3,
+        "{} {}",
+        force_at(0.018),
+        force_at(0.021)
+    );
+}
+
+/// Two layers in series under a prescribed end displacement, relaxed: the mean strain
+/// of each layer is inversely proportional to its modulus (equal force through both,
+/// `eps_1 / eps_2 = E_2 / E_1`), within 15% (nodal quadrature at 4 nodes per layer, and
+/// the lateral contraction the held ends restrain); uniform material gives equal strains.
+#[test]
+fn layers_in_series_share_the_force() {
+    let run = |stiff: &str| {
+        let text = format!(
+            "[tissue]\ndensity = 1000.0\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.032, 0.008, 0.008], spacing = {H} }}\n\
+             [material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 10000.0\npoisson_ratio = 0.0\n\
+             [physics]\ndt = 2e-4\ndamping = 60.0\n\
+             [[fixed]]\naxis = \"x\"\nbelow = 0.0001\n\
+             [[prescribed]]\naxis = \"x\"\nabove = 0.0319\ndisplacement = [0.0016, 0.0, 0.0]\nramp = 0.05\n\
+             [[region]]\nname = \"soft\"\ngeometry = {{ kind = \"box\", min = [0.0, -0.001, -0.001], max = [0.016, 0.009, 0.009] }}\n\
+             material = {{ young_modulus = {stiff}, poisson_ratio = 0.0 }}\n"
+        );
+        let scene = Scene::from_toml_str(&text, Path::new(".")).unwrap();
+        let tissue = Tissue::from_scene(&scene).unwrap();
+        let rest: Vec<[f32; 4]> = tissue.state.positions.clone();
+        let n = tissue.n_mesh;
+        let mut sim = Simulation::prepare(&scene).unwrap();
+        let b = CpuBackend::new(sim.tissue.clone(), Threading::Single).unwrap();
+        let mut sim = sim.start(Box::new(b)).unwrap();
+        sim.step_n(3000).unwrap();
+        let mut x = vec![[0.0f32; 4]; n];
+        sim.backend()
+            .read(NodeField::Position, 0..n, &mut x)
+            .unwrap();
+        // Mean x displacement of the node planes at x = 16 mm (the interface) and 32 mm.
+        let mean_u = |plane: f32| {
+            let sel: Vec<usize> = (0..n)
+                .filter(|&i| (rest[i][0] - plane).abs() < 1e-4)
+                .collect();
+            sel.iter()
+                .map(|&i| (x[i][0] - rest[i][0]) as f64)
+                .sum::<f64>()
+                / sel.len() as f64
+        };
+        let (mid, end) = (mean_u(0.016), mean_u(0.032));
+        (mid / 0.016, (end - mid) / 0.016)
+    };
+    let (soft, stiff) = run("2500.0");
+    let ratio = soft / stiff;
+    eprintln!("strains: soft {soft:.4}, stiff {stiff:.4}, ratio {ratio:.2} (expected 4)");
+    assert!((ratio / 4.0 - 1.0).abs() < 0.15, "ratio {ratio}");
+    let (a, b) = run("10000.0");
+    assert!((a / b - 1.0).abs() < 0.05, "uniform material: {a} {b}");
+}
+
+fn error_of(text: &str) -> String {
+    let e = match Scene::from_toml_str(text, Path::new(".")) {
+        Err(e) => e.to_string(),
+        Ok(scene) => match Simulation::prepare(&scene) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("accepted:\n{text}"),
+        },
+    };
+    e
+}
+
+/// Bad region input: typed errors that name the region and the key.
+#[test]
+fn bad_regions_are_errors_naming_the_region_and_key() {
+    let ok = layered("debunne_meshfree", ["1.0", "0.5", "0.5"]);
+    assert!(Simulation::prepare(&scene(&ok)).is_ok());
+    let cases: Vec<(String, &str)> = vec![
+        (
+            ok.replace("min = [0.008, -0.001", "min = [0.004, -0.001"),
+            "region[middle].geometry",
+        ),
+        (
+            ok.replace(
+                "material = { young_modulus = 8000.0, poisson_ratio = 0.3 }\n",
+                "",
+            ),
+            "region[middle].material",
+        ),
+        (
+            ok.replace(
+                "puncture_force = 0.5, cutting = 0.05",
+                "puncture_force = 0.0, cutting = 0.05",
+            ),
+            "region[middle].needle.puncture_force",
+        ),
+        (
+            ok.replace(
+                "puncture_force = 0.5, cutting = 0.05",
+                "puncture_force = -2.0, cutting = 0.05",
+            ),
+            "region[middle].needle.puncture_force",
+        ),
+        (
+            ok.replace(
+                "puncture_force = 0.5, cutting = 0.05",
+                "puncture_force = 1.0, impenetrable = true, cutting = 0.05",
+            ),
+            "region[middle].needle.impenetrable",
+        ),
+        (
+            ok.replace("cutting = 0.05 }", "cutting = -0.05 }"),
+            "region[middle].needle.cutting",
+        ),
+        (
+            ok.replace(
+                "young_modulus = 8000.0, poisson_ratio = 0.3",
+                "young_modulus = -8000.0, poisson_ratio = 0.3",
+            ),
+            "region[middle].material.young_modulus",
+        ),
+        (
+            ok.replace(
+                "young_modulus = 8000.0, poisson_ratio = 0.3",
+                "model = \"mass_spring\", stiffness = 3.0",
+            ),
+            "region[middle].material.model",
+        ),
+        (
+            ok.replace(
+                "young_modulus = 8000.0, poisson_ratio = 0.3",
+                "young_modulus = 8000.0, poisson_ratio = 0.3, corotated = false",
+            ),
+            "region[middle].material.corotated",
+        ),
+        (
+            ok.replace("name = \"deep\"", "name = \"middle\""),
+            "region[2].name",
+        ),
+        (
+            ok.replace("name = \"deep\"", &format!("name = \"{BASE_REGION}\"")),
+            "region[2].name",
+        ),
+        (
+            ok.replace("min = [0.016, -0.001", "min = [0.0405, -0.001")
+                .replace("max = [0.033, 0.017", "max = [0.05, 0.017"),
+            "region[deep].geometry",
+        ),
+        (
+            ok.replace("needle = { cutting = 0.05 }", "needle = { cuting = 0.05 }")
+                .replace(
+                    "puncture_force = 0.5, cutting = 0.05",
+                    "puncture_forse = 0.5",
+                ),
+            "region[middle].needle",
+        ),
+    ];
+    for (text, key) in cases {
+        let e = error_of(&text);
+        assert!(
+            e.contains(key),
+            "expected an error naming `{key}`, got: {e}"
+        );
+    }
+}
+
+/// One material in every region (same parameters): no per-node rows are allocated, and
+/// the run is bitwise the run without regions.
+#[test]
+fn regions_of_one_material_allocate_nothing_and_change_nothing() {
+    let plain = "[tissue]\ndensity = 1000.0\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.016, 0.016, 0.016], spacing = 0.004 }\n\
+                 [material]\nmodel = \"mass_spring\"\nstiffness = 40.0\n[physics]\ndt = 1e-3\ngravity = [0.0, -9.81, 0.0]\n\
+                 [[fixed]]\naxis = \"y\"\nbelow = 0.0001\n";
+    let with = format!(
+        "{plain}[[region]]\nname = \"top\"\ngeometry = {{ kind = \"box\", min = [0.0, 0.008, 0.0], max = [0.016, 0.016, 0.016] }}\nmaterial = {{ stiffness = 40.0 }}\n"
+    );
+    let run = |text: &str| {
+        let t = Tissue::from_scene(&Scene::from_toml_str(text, Path::new(".")).unwrap()).unwrap();
+        assert!(t.shape.node_material().is_none());
+        let mut b = CpuBackend::new(t, Threading::Single).unwrap();
+        b.step(200);
+        b.tissue().state.positions.clone()
+    };
+    assert_eq!(run(plain), run(&with));
+}
