@@ -498,3 +498,169 @@ fn read_many_gathers_in_one_readback() {
     }
     assert_eq!(c.readbacks(), 0, "the CPU backend has no readbacks");
 }
+
+/// The two-layer test scenes, per model: (label, `[material]` keys, the `stiff` region's
+/// material). The region (x <= 5 cm, half the cube) is 4 times as stiff, and every other
+/// constant a node row carries differs too (mass-spring damping, Debunne and PBA
+/// hourglass, PBA volume stiffness), so that a kernel reading any lane of the wrong node
+/// or the uniform parameters instead shows.
+const LAYERED: [(&str, &str, &str); 6] = [
+    (
+        "msm",
+        "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.01",
+        "{ stiffness = 400.0, spring_damping = 0.04 }",
+    ),
+    (
+        "lshm-node",
+        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"node\"",
+        "{ stiffness = 80.0 }",
+    ),
+    (
+        "lshm-cluster",
+        "model = \"local_shape_matching\"\nstiffness = 20.0\nforces = \"cluster\"",
+        "{ stiffness = 80.0 }",
+    ),
+    (
+        "deb",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 10000.0\npoisson_ratio = 0.3",
+        "{ young_modulus = 40000.0, poisson_ratio = 0.3, hourglass = 0.5 }",
+    ),
+    (
+        "deb-corotated",
+        "model = \"debunne_meshfree\"\nyoung_modulus = 10000.0\npoisson_ratio = 0.3\n\
+         corotated = true",
+        "{ young_modulus = 40000.0, poisson_ratio = 0.3, hourglass = 0.5 }",
+    ),
+    (
+        "pba",
+        "model = \"point_based\"\nyoung_modulus = 10000.0\npoisson_ratio = 0.3\n\
+         volume_stiffness = 1000.0",
+        "{ young_modulus = 40000.0, poisson_ratio = 0.3, volume_stiffness = 4000.0, \
+         hourglass = 0.5 }",
+    ),
+];
+
+/// A free 10 cm cube of about 400 nodes stretched by 30% along x, with `material`, and
+/// with the `stiff` region of `region` over its x <= 5 cm half when that is given.
+fn layered_scene(material: &str, region: Option<&str>) -> Scene {
+    let mut toml = format!(
+        "name = \"two layers\"\n\
+         [tissue]\n\
+         density = 1000.0\n\
+         geometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 400 }}\n\
+         [material]\n{material}\n\
+         [physics]\n\
+         dt = 1e-3\n\
+         damping = 20.0\n\
+         [initial]\n\
+         stretch = [1.3, 1.0, 1.0]\n"
+    );
+    if let Some(region) = region {
+        toml += &format!(
+            "[[region]]\n\
+             name = \"stiff\"\n\
+             geometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.1, 0.1] }}\n\
+             material = {region}\n"
+        );
+    }
+    Scene::from_toml_str(&toml, std::path::Path::new(".")).unwrap()
+}
+
+/// Largest distance between two force fields, over the largest force of the first.
+fn force_difference(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
+    let d = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| norm3([x[0] - y[0], x[1] - y[1], x[2] - y[2], 0.0]))
+        .fold(0.0, f64::max);
+    d / max_norm(a)
+}
+
+/// Two materials (`[[region]]`, per-node `node_material` rows) on the GPU, for every
+/// model variant: the forces of the stretched two-layer cube, then the positions after
+/// 100 and 500 steps, against one CPU thread.
+///
+/// Tolerances: forces within 1e-5 of the largest force (as `range_writes_round_trip` and
+/// `shape_rows_written_on_either_backend_agree`: one kernel evaluation, f32 round-off
+/// only), positions within 1e-4 of the largest initial displacement (as
+/// `gpu_matches_cpu_for_every_model`: the mixed kernels do the CPU's f32 operations in its
+/// order, so only the shader compiler's fused multiply-adds can separate them). Measured
+/// on lavapipe: forces 0 (msm) to 1.1e-6 (lshm-node), positions 0 (msm) to 4.4e-6
+/// (lshm-cluster).
+///
+/// So that the test could fail: the two-layer result must differ from the one-material
+/// cube (the base material everywhere) by more than 1000 times each tolerance, both on
+/// the CPU (its mixed path is taken) and between the GPU's two runs (with the uniform
+/// constants the GPU's two-layer run would equal its one-material run). Measured: 0.75 of
+/// the largest force (the stiff half's forces are 4 times the soft one's), and 0.25
+/// (lshm-cluster) to 0.75 (lshm-node) of the motion after 100 steps.
+#[test]
+fn gpu_matches_cpu_with_two_materials() {
+    const FORCE_TOL: f64 = 1e-5;
+    const POSITION_TOL: f64 = 1e-4;
+    for (label, material, region) in LAYERED {
+        let layered = layered_scene(material, Some(region));
+        let single = layered_scene(material, None);
+        let tissue = Tissue::from_scene(&layered).unwrap();
+        assert!(tissue.shape.node_material().is_some(), "{label}");
+        assert!(Tissue::from_scene(&single)
+            .unwrap()
+            .shape
+            .node_material()
+            .is_none());
+        let Some(mut g) = gpu(&tissue) else { return };
+        assert!(
+            g.buffers()
+                .sizes()
+                .iter()
+                .any(|(n, _)| *n == "node_material"),
+            "{label}"
+        );
+        let mut gs = gpu(&Tissue::from_scene(&single).unwrap()).unwrap();
+        let mut c = backend(&layered, Threading::Single);
+        let mut cs = backend(&single, Threading::Single);
+        let start = read(&mut c, NodeField::Position);
+        // One force evaluation of the stretched cube.
+        for b in [
+            &mut c as &mut dyn Backend,
+            &mut cs as &mut dyn Backend,
+            &mut g,
+            &mut gs,
+        ] {
+            b.compute_forces();
+        }
+        let f = [&mut c as &mut dyn Backend, &mut cs, &mut g, &mut gs]
+            .map(|b| read(b, NodeField::Force));
+        let force_rel = force_difference(&f[0], &f[2]);
+        let force_layers = force_difference(&f[0], &f[1]).min(force_difference(&f[2], &f[3]));
+        // 100 steps (the layers' motions still far apart), then 400 more.
+        let rest = rest_positions(&layered);
+        let (mut rel, mut layers) = (0.0f64, 0.0f64);
+        for steps in [100, 400] {
+            for b in [&mut c as &mut dyn Backend, &mut cs, &mut g, &mut gs] {
+                b.step(steps);
+            }
+            let x = [&mut c as &mut dyn Backend, &mut cs, &mut g, &mut gs]
+                .map(|b| read(b, NodeField::Position));
+            rel = rel.max(relative_difference(&x[0], &x[2], &start, &rest));
+            layers = layers.max(
+                relative_difference(&x[0], &x[1], &start, &rest)
+                    .min(relative_difference(&x[2], &x[3], &start, &rest)),
+            );
+        }
+        g.check_finite().unwrap();
+        eprintln!(
+            "{label}: forces differ by {force_rel:.2e} (layers {force_layers:.2e}), positions \
+             by {rel:.2e} (layers {layers:.2e})"
+        );
+        assert!(
+            force_rel < FORCE_TOL,
+            "{label}: forces differ by {force_rel:e}"
+        );
+        assert!(rel < POSITION_TOL, "{label}: positions differ by {rel:e}");
+        assert!(
+            force_layers > 1e3 * FORCE_TOL && layers > 1e3 * POSITION_TOL,
+            "{label}: the layers change too little ({force_layers:e}, {layers:e})"
+        );
+    }
+}

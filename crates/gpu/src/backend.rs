@@ -538,15 +538,35 @@ impl GpuBackend {
     }
 }
 
-/// The force kernels of the tissue's model, in order, bound to `b`.
+/// The force kernels of the tissue's model, in order, bound to `b`. With several
+/// materials (`node_material` present) the kernels that read material constants are their
+/// `_mixed` entry points, bound to the `node_material` buffer too (the cluster shape
+/// matching forces read the stiffness its frame pass put in the centres' w lane, and the
+/// co-rotated Debunne model takes its rotations in a pass of their own first, to stay
+/// within 8 storage buffers per kernel); with one material the kernels and bindings are
+/// those of the uniform parameters only.
 fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pass> {
     let pass = |kernel: Kernel, entries: &[(u32, &wgpu::Buffer)]| {
         let bind = kernel.bind(device, entries);
         Pass { kernel, bind }
     };
+    let material = shape
+        .node_material()
+        .map(|_| (kernels::MATERIAL_BINDING, b.model(ShapeArray::NodeMaterial)));
+    let mixed = material.is_some();
+    // A kernel reading material constants: its entries, with the material's when mixed.
+    let pass_m = |kernel: Kernel, entries: &[(u32, &wgpu::Buffer)]| {
+        let mut entries = entries.to_vec();
+        entries.extend(material);
+        pass(kernel, &entries)
+    };
     match shape {
-        ShapeInfo::MassSpring { .. } => vec![pass(
-            kernels::mass_spring(device),
+        ShapeInfo::MassSpring { .. } => vec![pass_m(
+            if mixed {
+                kernels::mass_spring_mixed(device)
+            } else {
+                kernels::mass_spring(device)
+            },
             &[
                 (0, &b.params),
                 (1, &b.positions),
@@ -558,30 +578,44 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
             ],
         )],
         ShapeInfo::LocalShapeMatching { cluster_centre, .. } => {
-            let frame = |kernel: Kernel, out: &wgpu::Buffer| {
-                pass(
-                    kernel,
-                    &[
-                        (0, &b.params),
-                        (1, &b.positions),
-                        (2, b.model(ShapeArray::RestPosition)),
-                        (3, b.model(ShapeArray::ShapeVector)),
-                        (4, &b.nb_index),
-                        (5, &b.nb_weight),
-                        (6, b.model(ShapeArray::Rotation)),
-                        (7, out),
-                    ],
-                )
+            let frame_entries = |out| {
+                [
+                    (0, &b.params),
+                    (1, &b.positions),
+                    (2, b.model(ShapeArray::RestPosition)),
+                    (3, b.model(ShapeArray::ShapeVector)),
+                    (4, &b.nb_index),
+                    (5, &b.nb_weight),
+                    (6, b.model(ShapeArray::Rotation)),
+                    (7, out),
+                ]
             };
             match cluster_centre {
-                None => vec![frame(kernels::lshm_node_force(device), &b.forces)],
+                None => vec![pass_m(
+                    if mixed {
+                        kernels::lshm_node_force_mixed(device)
+                    } else {
+                        kernels::lshm_node_force(device)
+                    },
+                    &frame_entries(&b.forces),
+                )],
+                // Mixed: the frame pass puts each cluster's stiffness in its centre's w
+                // lane for the force pass.
                 Some(_) => vec![
-                    frame(
-                        kernels::lshm_cluster_frame(device),
-                        b.model(ShapeArray::ClusterCentre),
+                    pass_m(
+                        if mixed {
+                            kernels::lshm_cluster_frame_mixed(device)
+                        } else {
+                            kernels::lshm_cluster_frame(device)
+                        },
+                        &frame_entries(b.model(ShapeArray::ClusterCentre)),
                     ),
                     pass(
-                        kernels::lshm_cluster_force(device),
+                        if mixed {
+                            kernels::lshm_cluster_force_mixed(device)
+                        } else {
+                            kernels::lshm_cluster_force(device)
+                        },
                         &[
                             (0, &b.params),
                             (1, &b.positions),
@@ -614,30 +648,52 @@ fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pa
                 (5, b.model(ShapeArray::InverseMoment)),
                 (6, b.model(ShapeArray::FirstPass)),
             ];
-            let entry = match shape {
-                ShapeInfo::PointBased { .. } => "pba",
-                _ if corotated => {
+            let mut passes = Vec::new();
+            let entry = match (shape, mixed) {
+                (ShapeInfo::PointBased { .. }, false) => "pba",
+                (ShapeInfo::PointBased { .. }, true) => "pba_mixed",
+                (_, false) if corotated => {
                     entries.push((8, b.model(ShapeArray::ShapeVector)));
                     entries.push((9, b.model(ShapeArray::Rotation)));
                     "deb_corotated"
                 }
-                _ => "deb_linear",
+                // Mixed and co-rotated: the rotations first, in a pass of their own.
+                (_, true) if corotated => {
+                    passes.push(pass(
+                        kernels::continuum_first_pass(device, "deb_frame"),
+                        &[
+                            (0, &b.params),
+                            (1, &b.positions),
+                            (2, b.model(ShapeArray::RestPosition)),
+                            (3, &b.nb_index),
+                            (4, &b.nb_weight),
+                            (8, b.model(ShapeArray::ShapeVector)),
+                            (9, b.model(ShapeArray::Rotation)),
+                        ],
+                    ));
+                    entries.push((9, b.model(ShapeArray::Rotation)));
+                    "deb_corotated_mixed"
+                }
+                (_, false) => "deb_linear",
+                (_, true) => "deb_linear_mixed",
             };
-            vec![
-                pass(kernels::continuum_first_pass(device, entry), &entries),
-                pass(
-                    kernels::gather_force(device),
-                    &[
-                        (0, &b.params),
-                        (1, &b.positions),
-                        (2, b.model(ShapeArray::RestPosition)),
-                        (3, &b.nb_index),
-                        (4, &b.nb_weight),
-                        (5, b.model(ShapeArray::FirstPass)),
-                        (6, &b.forces),
-                    ],
-                ),
-            ]
+            passes.push(pass_m(
+                kernels::continuum_first_pass(device, entry),
+                &entries,
+            ));
+            passes.push(pass(
+                kernels::gather_force(device),
+                &[
+                    (0, &b.params),
+                    (1, &b.positions),
+                    (2, b.model(ShapeArray::RestPosition)),
+                    (3, &b.nb_index),
+                    (4, &b.nb_weight),
+                    (5, b.model(ShapeArray::FirstPass)),
+                    (6, &b.forces),
+                ],
+            ));
+            passes
         }
     }
 }

@@ -4,6 +4,12 @@
 //! each entry point binds only what it uses. Kernels hold pipelines only; the buffers they
 //! run on live in [`crate::Buffers`].
 //!
+//! With several materials (`ShapeInfo::node_material`) the force kernels that read material
+//! constants have `_mixed` entry points taking them per node from the `node_material`
+//! array at binding [`MATERIAL_BINDING`] (or from the pass before: the two that would
+//! otherwise exceed the 8 storage buffers per kernel the device is asked for); the
+//! single-material entry points do not bind it.
+//!
 //! The sources are read with `include_str!("../shaders/...")` through the relative symlink
 //! `crates/gpu/shaders -> ../../shaders`. `cargo package` follows a symlinked directory
 //! inside the package and stores the files it points to as ordinary files under
@@ -21,6 +27,9 @@ const GATHER_FORCE: &str = include_str!("../shaders/gather_force.wgsl");
 
 /// Nodes per workgroup (`@workgroup_size` of every kernel).
 pub const WORKGROUP: u32 = 64;
+
+/// Binding (group 0) of the `node_material` array in the `_mixed` entry points that read it.
+pub const MATERIAL_BINDING: u32 = 10;
 
 /// A compiled compute pipeline and its name.
 #[derive(Debug)]
@@ -87,6 +96,12 @@ pub fn mass_spring(device: &wgpu::Device) -> Kernel {
     Kernel::compile(device, "mass_spring", &[COMMON, MASS_SPRING], "main")
 }
 
+/// `mass_spring.wgsl::mixed`: mass-spring forces, each spring with the series mean of its
+/// nodes' stiffness and damping.
+pub fn mass_spring_mixed(device: &wgpu::Device) -> Kernel {
+    Kernel::compile(device, "mass_spring/mixed", &[COMMON, MASS_SPRING], "mixed")
+}
+
 /// `lshm_frame.wgsl::node_force`: shape matching frame and the paper's per-node force.
 pub fn lshm_node_force(device: &wgpu::Device) -> Kernel {
     Kernel::compile(
@@ -94,6 +109,16 @@ pub fn lshm_node_force(device: &wgpu::Device) -> Kernel {
         "lshm_frame/node_force",
         &[COMMON, CLUSTER_FRAME, LSHM_FRAME],
         "node_force",
+    )
+}
+
+/// `lshm_frame.wgsl::node_force_mixed`: [`lshm_node_force`] with each node's own stiffness.
+pub fn lshm_node_force_mixed(device: &wgpu::Device) -> Kernel {
+    Kernel::compile(
+        device,
+        "lshm_frame/node_force_mixed",
+        &[COMMON, CLUSTER_FRAME, LSHM_FRAME],
+        "node_force_mixed",
     )
 }
 
@@ -117,11 +142,39 @@ pub fn lshm_cluster_force(device: &wgpu::Device) -> Kernel {
     )
 }
 
-/// `continuum_first_pass.wgsl`: `entry` is `deb_linear`, `deb_corotated` or `pba`.
+/// `lshm_frame.wgsl::cluster_frame_mixed`: [`lshm_cluster_frame`], with node i's stiffness
+/// in the w lane of its centre offset for [`lshm_cluster_force_mixed`].
+pub fn lshm_cluster_frame_mixed(device: &wgpu::Device) -> Kernel {
+    Kernel::compile(
+        device,
+        "lshm_frame/cluster_frame_mixed",
+        &[COMMON, CLUSTER_FRAME, LSHM_FRAME],
+        "cluster_frame_mixed",
+    )
+}
+
+/// `lshm_cluster_force.wgsl::mixed`: [`lshm_cluster_force`] with each cluster's own
+/// stiffness (from [`lshm_cluster_frame_mixed`]).
+pub fn lshm_cluster_force_mixed(device: &wgpu::Device) -> Kernel {
+    Kernel::compile(
+        device,
+        "lshm_cluster_force/mixed",
+        &[COMMON, LSHM_CLUSTER_FORCE],
+        "mixed",
+    )
+}
+
+/// `continuum_first_pass.wgsl`: `entry` is `deb_linear`, `deb_corotated` or `pba`, or one
+/// of them with `_mixed` appended (the constants of each node from `node_material`;
+/// `deb_corotated_mixed` after `deb_frame`, which stores the rotations it reads).
 pub fn continuum_first_pass(device: &wgpu::Device, entry: &'static str) -> Kernel {
     let name = match entry {
         "deb_linear" => "continuum_first_pass/deb_linear",
         "deb_corotated" => "continuum_first_pass/deb_corotated",
+        "deb_frame" => "continuum_first_pass/deb_frame",
+        "deb_linear_mixed" => "continuum_first_pass/deb_linear_mixed",
+        "deb_corotated_mixed" => "continuum_first_pass/deb_corotated_mixed",
+        "pba_mixed" => "continuum_first_pass/pba_mixed",
         _ => "continuum_first_pass/pba",
     };
     Kernel::compile(
