@@ -16,9 +16,10 @@
 //!   Lame parameters, hourglass control and volume stiffness (nodal quadrature of a
 //!   piecewise constant material).
 //!
-//! All regions use the scene's model; the keys that change the model's structure
-//! (`forces`, `corotated`, `rotation_iterations`, `node_volumes`, `spring_share`) are
-//! inherited from `[material]` and may not differ. A node on the boundary between two
+//! All regions use the scene's model. A region's `material` table gives the keys that
+//! differ from `[material]` and inherits the others; the keys that change the model's
+//! structure (`forces`, `corotated`, `rotation_iterations`, `node_volumes`,
+//! `spring_share`) may not differ. A node on the boundary between two
 //! regions belongs to the one listed first; two regions that share interior nodes are an
 //! error.
 //!
@@ -283,8 +284,8 @@ pub fn validate(scene: &Scene) -> Result<(), SceneError> {
     Ok(())
 }
 
-/// The material of a region: its `material` table for the scene's model, with the
-/// structural keys inherited from `[material]`.
+/// The material of a region: its `material` table over `[material]` (every key it leaves
+/// out is inherited); the structural keys may not differ.
 pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, SceneError> {
     let key = format!("{}.material", region_key(spec));
     let Some(table) = &spec.material else {
@@ -314,14 +315,18 @@ pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, Sce
             ))
         }
     }
-    let parse_err = |e: toml::de::Error| {
-        SceneError::invalid(
-            key.clone(),
-            e.to_string().trim_end().replace('\n', " ").to_string(),
-        )
-    };
-    let v = toml::Value::Table(t.clone());
-    let has = |k: &str| t.contains_key(k);
+    // The region's keys over every key of `[material]`.
+    let mut full = base_table(&base);
+    for (k, v) in t.iter() {
+        full.insert(k.clone(), v.clone());
+    }
+    full.insert("model".into(), toml::Value::String(model.into()));
+    let parsed: Result<Material, toml::de::Error> = toml::Value::Table(full)
+        .try_into::<crate::scene::MaterialTable>()
+        .map(|m| m.0);
+    let m = parsed.map_err(|e| {
+        SceneError::invalid(key.clone(), e.to_string().trim_end().replace('\n', " "))
+    })?;
     let structural = |k: &str| {
         SceneError::invalid(
             format!("{key}.{k}"),
@@ -331,52 +336,95 @@ pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, Sce
             ),
         )
     };
-    Ok(match base {
-        Material::MassSpring(b) => {
-            let mut m: crate::scene::MassSpringParams = v.try_into().map_err(parse_err)?;
-            if has("spring_share") && m.spring_share != b.spring_share {
-                return Err(structural("spring_share"));
-            }
-            m.spring_share = b.spring_share;
-            Material::MassSpring(m)
+    let differs = match (&base, &m) {
+        (Material::MassSpring(b), Material::MassSpring(r)) => {
+            (b.spring_share != r.spring_share).then_some("spring_share")
         }
-        Material::LocalShapeMatching(b) => {
-            let mut m: crate::scene::ShapeMatchingParams = v.try_into().map_err(parse_err)?;
-            if has("forces") && m.forces != b.forces {
-                return Err(structural("forces"));
+        (Material::LocalShapeMatching(b), Material::LocalShapeMatching(r)) => {
+            if b.forces != r.forces {
+                Some("forces")
+            } else {
+                (b.rotation_iterations != r.rotation_iterations).then_some("rotation_iterations")
             }
-            if has("rotation_iterations") && m.rotation_iterations != b.rotation_iterations {
-                return Err(structural("rotation_iterations"));
-            }
-            m.forces = b.forces;
-            m.rotation_iterations = b.rotation_iterations;
-            Material::LocalShapeMatching(m)
         }
-        Material::DebunneMeshfree(b) => {
-            let mut m: crate::scene::DebunneParams = v.try_into().map_err(parse_err)?;
-            if has("corotated") && m.corotated != b.corotated {
-                return Err(structural("corotated"));
+        (Material::DebunneMeshfree(b), Material::DebunneMeshfree(r)) => {
+            if b.corotated != r.corotated {
+                Some("corotated")
+            } else if b.rotation_iterations != r.rotation_iterations {
+                Some("rotation_iterations")
+            } else {
+                (b.node_volumes != r.node_volumes).then_some("node_volumes")
             }
-            if has("rotation_iterations") && m.rotation_iterations != b.rotation_iterations {
-                return Err(structural("rotation_iterations"));
-            }
-            if has("node_volumes") && m.node_volumes != b.node_volumes {
-                return Err(structural("node_volumes"));
-            }
-            m.corotated = b.corotated;
-            m.rotation_iterations = b.rotation_iterations;
-            m.node_volumes = b.node_volumes;
-            Material::DebunneMeshfree(m)
         }
-        Material::PointBased(b) => {
-            let mut m: crate::scene::PointBasedParams = v.try_into().map_err(parse_err)?;
-            if has("node_volumes") && m.node_volumes != b.node_volumes {
-                return Err(structural("node_volumes"));
-            }
-            m.node_volumes = b.node_volumes;
-            Material::PointBased(m)
+        (Material::PointBased(b), Material::PointBased(r)) => {
+            (b.node_volumes != r.node_volumes).then_some("node_volumes")
         }
-    })
+        _ => Some("model"),
+    };
+    match differs {
+        Some(k) => Err(structural(k)),
+        None => Ok(m),
+    }
+}
+
+/// Every key of a material as its TOML table (without `model`).
+fn base_table(m: &Material) -> toml::Table {
+    use crate::scene::{NodeVolumes, ShapeMatchingForces, SpringShare};
+    let f = toml::Value::Float;
+    let s = |v: &str| toml::Value::String(v.into());
+    let volumes = |v: NodeVolumes| {
+        s(match v {
+            NodeVolumes::Cell => "cell",
+            NodeVolumes::Density => "density",
+            NodeVolumes::Uniform => "uniform",
+        })
+    };
+    let pairs: Vec<(&str, toml::Value)> = match *m {
+        Material::MassSpring(p) => vec![
+            ("stiffness", f(p.stiffness)),
+            ("spring_damping", f(p.spring_damping)),
+            (
+                "spring_share",
+                s(match p.spring_share {
+                    SpringShare::Cell => "cell",
+                    SpringShare::Equal => "equal",
+                }),
+            ),
+        ],
+        Material::LocalShapeMatching(p) => vec![
+            ("stiffness", f(p.stiffness)),
+            (
+                "rotation_iterations",
+                toml::Value::Integer(p.rotation_iterations as i64),
+            ),
+            (
+                "forces",
+                s(match p.forces {
+                    ShapeMatchingForces::Node => "node",
+                    ShapeMatchingForces::Cluster => "cluster",
+                }),
+            ),
+        ],
+        Material::DebunneMeshfree(p) => vec![
+            ("young_modulus", f(p.young_modulus)),
+            ("poisson_ratio", f(p.poisson_ratio)),
+            ("corotated", toml::Value::Boolean(p.corotated)),
+            (
+                "rotation_iterations",
+                toml::Value::Integer(p.rotation_iterations as i64),
+            ),
+            ("hourglass", f(p.hourglass)),
+            ("node_volumes", volumes(p.node_volumes)),
+        ],
+        Material::PointBased(p) => vec![
+            ("young_modulus", f(p.young_modulus)),
+            ("poisson_ratio", f(p.poisson_ratio)),
+            ("volume_stiffness", f(p.volume_stiffness)),
+            ("hourglass", f(p.hourglass)),
+            ("node_volumes", volumes(p.node_volumes)),
+        ],
+    };
+    pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
 /// A region's shape, ready for inside tests.

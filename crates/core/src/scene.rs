@@ -1138,6 +1138,15 @@ where
     }
 }
 
+/// A material table with its `model` key, deserialised ([`crate::regions`]).
+pub(crate) struct MaterialTable(pub Material);
+
+impl<'de> Deserialize<'de> for MaterialTable {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        de_material(d).map(MaterialTable)
+    }
+}
+
 fn de_material<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Material, D::Error> {
     de_tagged(d, "material", "model", |name, v| match name {
         "mass_spring" => Some(v.try_into().map(Material::MassSpring)),

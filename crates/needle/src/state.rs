@@ -71,6 +71,10 @@ pub(crate) struct NeedleState {
     /// The region whose membrane the crack front is denting, not yet punctured.
     #[serde(default)]
     pub denting: Option<u16>,
+    /// The regions whose membranes this insertion has punctured (in order): the crack
+    /// front crosses back into them without a membrane.
+    #[serde(default)]
+    pub punctured: Vec<u16>,
     /// The force on the needle in the last step.
     pub force: NeedleForce,
     pub history: Vec<NeedleSample>,
@@ -101,6 +105,7 @@ impl NeedleState {
             pinned_axial: 0.0,
             region: None,
             denting: None,
+            punctured: Vec::new(),
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,

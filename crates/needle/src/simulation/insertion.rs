@@ -132,6 +132,7 @@ impl Simulation {
             self.state.phase = if node.role == NodeRole::Surface {
                 self.state.region = None;
                 self.state.denting = None;
+                self.state.punctured.clear();
                 Phase::Outside
             } else {
                 Phase::Inside
@@ -283,6 +284,7 @@ impl Simulation {
                         self.state.phase = Phase::Inside;
                         self.state.region = Some(pinned_region as u16);
                         self.state.denting = None;
+                        self.state.punctured.push(pinned_region as u16);
                         self.state.nodes[0].friction = FrictionState::Slip;
                         self.state.cut_depth = self.depth_of(now.tip(), now.direction());
                         self.inside(now, v_tip)?;

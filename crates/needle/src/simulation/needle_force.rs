@@ -84,10 +84,15 @@ impl Simulation {
             if front < m {
                 let r = self.state.nodes[front].region;
                 let current = self.state.region.unwrap_or(r);
-                self.state.denting = None;
-                if r != current {
+                // A membrane being dented stays so until it gives or the tip is pulled
+                // back: the front's rest position can drift through compressed tissue.
+                if !cutting {
+                    self.state.denting = None;
+                }
+                if r != current && self.state.denting.is_none() {
+                    let fresh = !self.state.punctured.contains(&r);
                     match self.contact.layers[r as usize].membrane {
-                        Membrane::Force(_) | Membrane::Impenetrable if cutting => {
+                        Membrane::Force(_) | Membrane::Impenetrable if cutting && fresh => {
                             self.state.denting = Some(r);
                         }
                         _ => self.state.region = Some(r),
@@ -146,6 +151,7 @@ impl Simulation {
                             // The membrane gave: punctured.
                             if let Some(r) = self.state.denting.take() {
                                 self.state.region = Some(r);
+                                self.state.punctured.push(r);
                             }
                         }
                         let n = &mut self.state.nodes[k];
