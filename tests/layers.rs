@@ -133,7 +133,7 @@ fn the_needle_punctures_each_layer_in_turn_and_extraction_restores_every_array()
         let names: Vec<&str> = e.iter().map(|e| e.0.as_str()).collect();
         assert_eq!(names, ["outer", "middle", "deep"], "{model}: {e:?}");
         let h = sim.history();
-        for (k, (name, depth, at)) in e.iter().enumerate().skip(1) {
+        for (k, (name, depth, _)) in e.iter().enumerate().skip(1) {
             let membrane = [0.0, 0.010, 0.018][k];
             // Tip travel past first contact, not material depth: the entry dent and the
             // tissue dragged along by friction shift it (reported, see the README).
@@ -144,7 +144,6 @@ fn the_needle_punctures_each_layer_in_turn_and_extraction_restores_every_array()
                 *depth > membrane - H,
                 "{model}: {name} entered too early at {depth} m"
             );
-            let _ = at;
         }
         // Pulled back, the tip is reported in the layers it passes.
         let back: Vec<Option<u16>> = h
