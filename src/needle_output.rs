@@ -12,9 +12,12 @@ use std::path::{Path, PathBuf};
 /// start tip if it never touched); `axial_force_n` is positive when the tissue resists
 /// insertion and negative when it resists extraction. `state` is `touching` also while
 /// the tip dents an inner membrane; `region` is the tissue region the tip is in (empty
-/// while it is not inside).
-pub const NEEDLE_CSV_HEADER: &str =
-    "step,time_s,depth_m,axial_force_n,lateral_force_n,state,active_nodes,needle_nodes,region";
+/// while it is not inside); `tissue_depth_m` is the depth of the tip in the undeformed
+/// tissue ([`Simulation::tissue_depth`]: 0 while denting the entry surface, empty while
+/// not in contact), which differs from `depth_m` by the dents and the tissue dragged
+/// along.
+pub const NEEDLE_CSV_HEADER: &str = "step,time_s,depth_m,axial_force_n,lateral_force_n,state,\
+active_nodes,needle_nodes,region,tissue_depth_m";
 
 fn state_name(s: PunctureState) -> &'static str {
     match s {
@@ -62,7 +65,7 @@ impl NeedleCsv {
         for s in &h[from..] {
             writeln!(
                 self.out,
-                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{}",
+                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{},{}",
                 s.step,
                 s.time,
                 sim.depth_of(s.tip, s.direction),
@@ -73,7 +76,8 @@ impl NeedleCsv {
                 s.needle_nodes,
                 s.region
                     .and_then(|r| sim.region_names().get(r as usize))
-                    .map_or("", |n| n.as_str())
+                    .map_or("", |n| n.as_str()),
+                s.tissue_depth.map_or(String::new(), |d| format!("{d:.6e}"))
             )?;
         }
         self.written = sim.history().last().map(|s| s.step).or(self.written);

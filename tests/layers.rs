@@ -104,82 +104,95 @@ fn entries(sim: &Simulation) -> Vec<(String, f64, usize)> {
     out
 }
 
-/// Co-rotated Debunne: the tip punctures `outer` (the entry surface), then enters `middle`
-/// and `deep` in that order, never before their rest depth (10 and 18 mm, less a
-/// spacing: the tip meets a region when its nearest node at rest is in it); the tip
-/// region is reported back out to `outer`; after full extraction every neighbour row,
-/// shape array (the per-node materials included) and surface triangle is bitwise as at
-/// the start. (Not asserted, because it does not hold yet: a dent and a force drop at
-/// each inner membrane, at its depth; see the README's layered-tissue section.)
+/// Co-rotated Debunne: the tip punctures `outer` (the entry surface), then dents and
+/// punctures the membranes of `middle` and `deep` in that order. Against the tip's depth
+/// in the undeformed tissue (`tissue_depth`), each membrane's force peak lies within one
+/// node spacing of its rest depth (10 and 18 mm, midway between node planes) and is
+/// followed by a drop to less than 60 % of the peak within 0.05 s; the tip region is
+/// reported back out to `outer`; after full extraction every neighbour row, shape array
+/// (the per-node materials included) and surface triangle is bitwise as at the start.
+/// (Against tip travel the peaks come later by the dents, 4 to 6 mm here: see the
+/// README's layered-tissue section.)
 #[test]
 fn the_needle_punctures_each_layer_in_turn_and_extraction_restores_every_array() {
-    // Only Debunne: with the other models' parameters here the entry surface is not
-    // punctured within the insertion (see the closing note of issue 21).
-    for model in ["debunne_meshfree"] {
-        let scene = scene(&layered(model, ["1.0", "0.5", "0.5"]));
-        let mut sim = cpu_sim(&scene);
-        assert!(
-            sim.editor().shape().node_material().is_some(),
-            "{model}: three materials need per-node rows"
-        );
-        let (nb, shape, tri) = (
-            sim.editor().neighbours().clone(),
-            sim.editor().shape().clone(),
-            sim.triangles().to_vec(),
-        );
-        let steps = (sim.script_duration() / sim.dt()).round() as u64 + 50;
-        sim.step_n(steps).unwrap();
-        let e = entries(&sim);
-        let names: Vec<&str> = e.iter().map(|e| e.0.as_str()).collect();
-        assert_eq!(names, ["outer", "middle", "deep"], "{model}: {e:?}");
-        let h = sim.history();
-        for (k, (name, depth, _)) in e.iter().enumerate().skip(1) {
-            let membrane = [0.0, 0.010, 0.018][k];
-            // Tip travel past first contact, not material depth: the entry dent and the
-            // tissue dragged along by friction shift it (reported, see the README).
-            eprintln!(
-                "{model}: {name} entered at tip depth {depth:.4} m (membrane at rest {membrane} m)"
-            );
-            assert!(
-                *depth > membrane - H,
-                "{model}: {name} entered too early at {depth} m"
-            );
-        }
-        // Pulled back, the tip is reported in the layers it passes.
-        let back: Vec<Option<u16>> = h
+    let scene = scene(&layered("debunne_meshfree", ["0.5", "0.4", "0.4"]));
+    let mut sim = cpu_sim(&scene);
+    assert!(
+        sim.editor().shape().node_material().is_some(),
+        "three materials need per-node rows"
+    );
+    let (nb, shape, tri) = (
+        sim.editor().neighbours().clone(),
+        sim.editor().shape().clone(),
+        sim.triangles().to_vec(),
+    );
+    let steps = (sim.script_duration() / sim.dt()).round() as u64 + 50;
+    sim.step_n(steps).unwrap();
+    let e = entries(&sim);
+    let names: Vec<&str> = e.iter().map(|e| e.0.as_str()).collect();
+    assert_eq!(names, ["outer", "middle", "deep"], "{e:?}");
+    let h = sim.history();
+    let after = (0.05 / sim.dt()).round() as usize;
+    for (k, (name, _, at)) in e.iter().enumerate().skip(1) {
+        let membrane = [0.0, 0.010, 0.018][k];
+        // The peak between the previous puncture and this one.
+        let from = e[k - 1].2;
+        let (peak_at, peak) = (from..*at)
+            .map(|i| (i, h[i].force.axial))
+            .fold((from, f64::MIN), |a, b| if b.1 > a.1 { b } else { a });
+        let depth = h[peak_at].tissue_depth.expect("inside: a tissue depth");
+        let low = h[*at..*at + after]
             .iter()
-            .filter(|s| s.time > 1.6 && s.region.is_some())
-            .map(|s| s.region)
-            .collect();
-        assert_eq!(
-            back.last().copied().flatten(),
-            sim.region_names()
-                .iter()
-                .position(|n| n == "outer")
-                .map(|r| r as u16),
-            "{model}"
+            .map(|s| s.force.axial)
+            .fold(f64::MAX, f64::min);
+        eprintln!(
+            "{name}: peak {peak:.3} N at tissue depth {:.2} mm (membrane {:.0} mm, travel {:.2} mm), \
+             then down to {low:.3} N",
+            depth * 1e3,
+            membrane * 1e3,
+            sim.depth_of(h[peak_at].tip, h[peak_at].direction) * 1e3
         );
-        assert_eq!(sim.state(), PunctureState::Outside, "{model}");
-        assert_eq!(sim.needle_nodes().len(), 0, "{model}");
+        assert!((depth - membrane).abs() < H, "{name}: peak at {depth} m");
         assert!(
-            sim.editor().neighbours() == &nb,
-            "{model}: neighbour rows differ"
+            low < 0.6 * peak,
+            "{name}: no drop after the peak {peak} ({low})"
         );
         assert!(
-            sim.editor().shape() == &shape,
-            "{model}: shape arrays differ"
+            h[peak_at].state == PunctureState::Touching,
+            "{name}: denting at the peak"
         );
-        assert_eq!(sim.triangles(), &tri[..], "{model}");
     }
+    // Pulled back, the tip is reported in the layers it passes.
+    let back: Vec<Option<u16>> = h
+        .iter()
+        .filter(|s| s.time > 1.6 && s.region.is_some())
+        .map(|s| s.region)
+        .collect();
+    assert_eq!(
+        back.last().copied().flatten(),
+        sim.region_names()
+            .iter()
+            .position(|n| n == "outer")
+            .map(|r| r as u16)
+    );
+    assert_eq!(sim.state(), PunctureState::Outside);
+    assert_eq!(sim.needle_nodes().len(), 0);
+    assert!(sim.editor().neighbours() == &nb, "neighbour rows differ");
+    assert!(sim.editor().shape() == &shape, "shape arrays differ");
+    assert_eq!(sim.triangles(), &tri[..]);
 }
 
 /// An impenetrable `middle` layer (a bone, a hard capsule): the tip never enters it or
-/// anything past it, and the force keeps rising as the needle presses on.
+/// anything past it, and the force keeps rising as the needle presses on (over the last
+/// 6 mm of travel).
 #[test]
 fn an_impenetrable_layer_stops_the_tip() {
-    let text = layered("debunne_meshfree", ["1.0", "impenetrable", "0.5"]);
+    let text = layered("debunne_meshfree", ["0.5", "impenetrable", "0.4"]);
     let mut sim = cpu_sim(&scene(&text));
-    sim.step_n((1.6 / sim.dt()) as u64).unwrap();
+    // To 14 mm of travel: the entry dent is about 6 mm, the membrane 10 mm deep. (Pressed
+    // further, a shaft node is pushed ahead of the tip and the run stops with NodesLost:
+    // see the closing note of issue 21.)
+    sim.step_n((1.05 / sim.dt()) as u64).unwrap();
     let h = sim.history();
     let outer = sim
         .region_names()

@@ -36,6 +36,15 @@ use needlesim_core::{Backend, NodeField, SimError, Tissue};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
+/// How an added node's rest position is found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Placement {
+    /// Fitted from the neighbourhood, less an elastic offset (world frame, m).
+    Offset([f64; 3]),
+    /// Given, m.
+    Rest([f64; 3]),
+}
+
 /// Why a node cannot be added or removed.
 #[derive(Debug, Error)]
 pub enum EditError {
@@ -281,8 +290,7 @@ impl NodeEditor {
 
     /// [`NodeEditor::add_node`] with an elastic offset (world frame, m): the rest position
     /// is `C0 + R^T ((x - C) - offset)`, so that a node re-added in place of one with that
-    /// [`NodeEditor::elastic_offset`] strains the tissue around it as the old one did (the
-    /// needle's Tip node refresh keeps the load ahead of the tip this way).
+    /// [`NodeEditor::elastic_offset`] strains the tissue around it as the old one did.
     pub fn add_node_with_offset(
         &mut self,
         backend: &mut dyn Backend,
@@ -291,8 +299,28 @@ impl NodeEditor {
         candidates: &[u32],
         offset: [f64; 3],
     ) -> Result<u32, EditError> {
+        self.add_node_placed(backend, x, v, candidates, Placement::Offset(offset))
+    }
+
+    /// [`NodeEditor::add_node`] with the rest position as `placement` says: fitted less
+    /// an elastic offset ([`NodeEditor::add_node_with_offset`]), or given (a node re-added
+    /// for the same material point: the needle's Tip node refresh keeps the material at
+    /// the tip, and so the load ahead of it, this way).
+    pub fn add_node_placed(
+        &mut self,
+        backend: &mut dyn Backend,
+        x: [f32; 3],
+        v: [f32; 3],
+        candidates: &[u32],
+        placement: Placement,
+    ) -> Result<u32, EditError> {
         if !x.iter().all(|c| c.is_finite()) {
             return Err(EditError::NonFinite(x));
+        }
+        if let Placement::Rest(r) = placement {
+            if !r.iter().all(|c| c.is_finite()) {
+                return Err(EditError::NonFinite(r.map(|c| c as f32)));
+            }
         }
         let i = self.n_active;
         if i >= self.capacity() {
@@ -327,10 +355,17 @@ impl NodeEditor {
         // Steps 2 and 3: rotation of the neighbourhood, shape vector, rest position.
         let members: Vec<(u32, Vec4)> = near.iter().map(|(_, j, p)| (*j, *p)).collect();
         let (c, c0, rot, q) = self.frame(&members);
-        let d = Vec3::from_array(x).as_dvec3() - c - DVec3::from_array(offset);
-        // v = R^T d
-        let v_shape = rot.transpose() * d;
-        let x0: Vec4 = (c0 + v_shape).as_vec3().extend(0.0).to_array();
+        let x0: Vec4 = match placement {
+            Placement::Offset(offset) => {
+                let d = Vec3::from_array(x).as_dvec3() - c - DVec3::from_array(offset);
+                // v = R^T d
+                c0 + rot.transpose() * d
+            }
+            Placement::Rest(r) => DVec3::from_array(r),
+        }
+        .as_vec3()
+        .extend(0.0)
+        .to_array();
 
         let mut undo = Vec::new();
         let old = Addition {

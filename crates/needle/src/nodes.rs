@@ -73,4 +73,8 @@ pub struct NeedleSample {
     /// the entry surface is punctured and once the tip is out.
     #[serde(default)]
     pub region: Option<u16>,
+    /// Depth of the tip in the undeformed tissue ([`crate::Simulation::tissue_depth`]),
+    /// m; `None` while the tip is not in contact.
+    #[serde(default)]
+    pub tissue_depth: Option<f64>,
 }

@@ -50,6 +50,7 @@ pub use prepare::Prepared;
 
 use crate::config::Membrane;
 use crate::friction::{FrictionModel, PerLengthFriction};
+use crate::material_point::AffineFit;
 use crate::needle::Needle;
 use crate::node_editor::{EditError, NodeEditor};
 use crate::nodes::{NeedleForce, NeedleNode, NeedleSample};
@@ -213,6 +214,16 @@ impl Simulation {
             Phase::Inside => self.state.denting,
             _ => None,
         }
+    }
+
+    /// Depth of the tip in the undeformed tissue in the last step, m: the rest position of
+    /// the tissue at the tip ([`crate::material_point`]) past the Surface node's, along the
+    /// needle. 0 while denting the entry surface; while cutting it grows only with the
+    /// tissue cut, not with the tissue pushed ahead or dragged along, so an inner
+    /// membrane is dented and punctured at its own depth. `None` while the tip is not in
+    /// the tissue (and past the far surface).
+    pub fn tissue_depth(&self) -> Option<f64> {
+        self.state.tissue_depth
     }
 
     /// The needle nodes, oldest first.
@@ -395,6 +406,7 @@ impl Simulation {
                 active_nodes: self.backend.n_active(),
                 needle_nodes: self.state.nodes.len(),
                 region: self.tip_region(),
+                tissue_depth: self.state.tissue_depth,
             };
             self.state.history.push(sample);
             self.trim_history();
@@ -449,25 +461,54 @@ impl Simulation {
         self.region_inv_mass[n.region as usize]
     }
 
-    /// The region of node `index` just added: that of its nearest live neighbour at rest
-    /// (a mesh node's, or a needle node's own).
-    fn region_of_added(&self, index: u32) -> u16 {
-        let nb = self.editor.neighbours();
-        let x = DVec3::from(self.rest_of(index));
-        let nearest = nb.live(index as usize).map(|(_, j, _)| j).min_by(|&a, &b| {
-            let d = |j: usize| (DVec3::from(self.rest_of(j as u32)) - x).length_squared();
-            d(a).total_cmp(&d(b)).then(a.cmp(&b))
-        });
-        match nearest {
-            Some(j) if j < self.node_region.len() => self.node_region[j],
-            Some(j) => self
-                .state
-                .nodes
-                .iter()
-                .find(|n| n.index as usize == j)
-                .map_or(0, |n| n.region),
-            None => 0,
-        }
+    /// The region of node `index` just added at `x`: that of the mesh node nearest at
+    /// rest to the material point under it ([`Simulation::material_region`]).
+    fn region_of_added(&mut self, index: u32, x: DVec3) -> Result<u16, SimError> {
+        let nodes = self.mesh_neighbours(index);
+        let mut pos = vec![[0.0f32; 4]; nodes.len()];
+        self.backend
+            .read_nodes(NodeField::Position, &nodes, &mut pos)?;
+        Ok(self.material_region(x, &nodes, &pos).map_or(0, |(_, r)| r))
+    }
+
+    /// The mesh nodes among the live neighbours of node `index`.
+    fn mesh_neighbours(&self, index: u32) -> Vec<u32> {
+        let n = self.node_region.len();
+        self.editor
+            .neighbours()
+            .live(index as usize)
+            .filter(|&(_, j, _)| j < n)
+            .map(|(_, j, _)| j as u32)
+            .collect()
+    }
+
+    /// The affine map from current to rest positions around world point `x`
+    /// ([`crate::material_point`]), fitted to the mesh nodes `nodes` at current positions
+    /// `pos`; `None` without nodes.
+    fn fit_around(&self, x: DVec3, nodes: &[u32], pos: &[Vec4]) -> Option<AffineFit> {
+        let pairs: Vec<(DVec3, DVec3)> = nodes
+            .iter()
+            .zip(pos)
+            .map(|(&j, p)| (xyz(*p), DVec3::from(self.rest[j as usize])))
+            .collect();
+        AffineFit::around(x, &pairs)
+    }
+
+    /// The region of rest position `x0`: that of the node among `nodes` nearest to it at
+    /// rest (region 0 without nodes).
+    fn region_at(&self, x0: DVec3, nodes: &[u32]) -> u16 {
+        let d = |j: u32| DVec3::from(self.rest[j as usize]).distance_squared(x0);
+        nodes
+            .iter()
+            .min_by(|&&a, &&b| d(a).total_cmp(&d(b)).then(a.cmp(&b)))
+            .map_or(0, |&j| self.node_region[j as usize])
+    }
+
+    /// The material point under world point `x` from the mesh nodes `nodes` at current
+    /// positions `pos`, and its region ([`Simulation::region_at`]). `None` without nodes.
+    fn material_region(&self, x: DVec3, nodes: &[u32], pos: &[Vec4]) -> Option<(DVec3, u16)> {
+        let x0 = self.fit_around(x, nodes, pos)?.rest_of(x);
+        Some((x0, self.region_at(x0, nodes)))
     }
 
     fn rest_of(&self, v: u32) -> [f64; 3] {

@@ -75,6 +75,9 @@ pub(crate) struct NeedleState {
     /// front crosses back into them without a membrane.
     #[serde(default)]
     pub punctured: Vec<u16>,
+    /// Depth of the tip in the undeformed tissue in the last step, m.
+    #[serde(default)]
+    pub tissue_depth: Option<f64>,
     /// The force on the needle in the last step.
     pub force: NeedleForce,
     pub history: Vec<NeedleSample>,
@@ -106,6 +109,7 @@ impl NeedleState {
             region: None,
             denting: None,
             punctured: Vec::new(),
+            tissue_depth: None,
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,

@@ -463,7 +463,9 @@ impl PySimulation {
 
     /// Every step's needle record as numpy arrays: step, time, depth (m past the first
     /// contact), axial, lateral (N), active_nodes, needle_nodes, and state and region
-    /// (lists of str; region is the tissue region the tip is in, "" when not inside).
+    /// (lists of str; region is the tissue region the tip is in, "" when not inside), and
+    /// tissue_depth (m: the tip's depth in the undeformed tissue, NaN, numpy's missing
+    /// value, while the tip is not in contact).
     /// `clear=True` also empties the record (stream a long run to disk chunk by chunk).
     #[pyo3(signature = (clear=false))]
     fn history<'py>(&self, py: Python<'py>, clear: bool) -> PyResult<Bound<'py, PyDict>> {
@@ -513,6 +515,10 @@ impl PySimulation {
             })
             .collect();
         d.set_item("region", regions)?;
+        d.set_item(
+            "tissue_depth",
+            PyArray1::from_vec(py, col(&|s| s.tissue_depth.unwrap_or(f64::NAN))),
+        )?;
         Ok(d)
     }
 

@@ -18,11 +18,11 @@
 //! A needle node that the tissue pushes ahead of an advancing tip (the shaft no longer
 //! holding the tissue it is in) stops the run with [`SimulationError::NodesLost`].
 
-use super::{at, vec4, Simulation};
+use super::{at, vec4, xyz, Simulation};
 use crate::config::Membrane;
 use crate::friction::FrictionState;
 use crate::needle::Needle;
-use crate::node_editor::EditError;
+use crate::node_editor::{EditError, Placement};
 use crate::nodes::{NeedleNode, NodeRole};
 use crate::puncture::{mean_cone_angle, TouchingOutcome};
 use crate::state::Phase;
@@ -85,11 +85,11 @@ impl Simulation {
         v: DVec3,
         friction: FrictionState,
     ) -> Result<(), EditError> {
-        self.add_with_offset(role, x, s, seeds, v, friction, [0.0; 3])
+        self.add_placed(role, x, s, seeds, v, friction, Placement::Offset([0.0; 3]))
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn add_with_offset(
+    fn add_placed(
         &mut self,
         role: NodeRole,
         x: DVec3,
@@ -97,17 +97,17 @@ impl Simulation {
         seeds: &[u32],
         v: DVec3,
         friction: FrictionState,
-        offset: [f64; 3],
+        placement: Placement,
     ) -> Result<(), EditError> {
         let cand = self.editor.rings(seeds, 2);
-        let index = self.editor.add_node_with_offset(
+        let index = self.editor.add_node_placed(
             self.backend.as_mut(),
             x.as_vec3().to_array(),
             v.as_vec3().to_array(),
             &cand,
-            offset,
+            placement,
         )?;
-        let region = self.region_of_added(index);
+        let region = self.region_of_added(index, x).map_err(EditError::from)?;
         self.state.nodes.push(NeedleNode {
             index,
             role,
@@ -368,7 +368,7 @@ impl Simulation {
                 ShaftEdit::LiftTip => {
                     // Taken off to edit the shaft behind it: re-added below with its load.
                     if carried.is_none() {
-                        carried = Some(self.tip_load(known.as_deref())?);
+                        carried = Some(self.tip_load(known.as_deref(), tip)?);
                     }
                     self.remove().map_err(|e| self.edit(e))?;
                     pos.pop();
@@ -385,13 +385,28 @@ impl Simulation {
                     let x = at(now, s);
                     let (v, state) = self.new_node_motion(has_tip, v_tip, known.as_deref())?;
                     let sd = seeds(&self.state.nodes);
-                    self.add(NodeRole::Shaft, x, s, &sd, v, state)
+                    // On the track between the last node and the material at the tip
+                    // when the Tip node was lifted for this (the shaft behind
+                    // a tip denting a membrane runs through tissue compressed and
+                    // stretched along it, where the editor's rigid fit can put the node at
+                    // rest past the tip); else the editor's fit (paper section 5.1).
+                    let placement = match carried {
+                        Some((_, _, Placement::Rest(front))) => {
+                            let r_last = DVec3::from(self.rest_of(self.state.nodes[last].index));
+                            let along = (s - (pos[last] - base).dot(t))
+                                / (now.length() - (pos[last] - base).dot(t));
+                            let r = r_last + (DVec3::from(front) - r_last) * along.clamp(0.0, 1.0);
+                            Placement::Rest(r.to_array())
+                        }
+                        _ => Placement::Offset([0.0; 3]),
+                    };
+                    self.add_placed(NodeRole::Shaft, x, s, &sd, v, state, placement)
                         .map_err(|e| self.edit(e))?;
                     pos.push(x);
                 }
                 ShaftEdit::AddTip => {
                     let sd = seeds(&self.state.nodes);
-                    let (state, v, offset) = match carried.take() {
+                    let (state, v, placement) = match carried.take() {
                         Some(load) => load,
                         // The first Tip node takes over the crack front from the deepest
                         // node: it strains the tissue ahead as that node did.
@@ -401,11 +416,11 @@ impl Simulation {
                                 .editor
                                 .elastic_offset(self.backend.as_mut(), front)
                                 .map_err(|e| self.edit(e))?;
-                            (FrictionState::Slip, v_tip, o)
+                            (FrictionState::Slip, v_tip, Placement::Offset(o))
                         }
-                        None => (FrictionState::Stick, v_tip, [0.0; 3]),
+                        None => (FrictionState::Stick, v_tip, Placement::Offset([0.0; 3])),
                     };
-                    self.add_with_offset(NodeRole::Tip, tip, now.length(), &sd, v, state, offset)
+                    self.add_placed(NodeRole::Tip, tip, now.length(), &sd, v, state, placement)
                         .map_err(|e| self.edit(e))?;
                     pos.push(tip);
                     self.state.tip_placed = tip.to_array();
@@ -430,15 +445,14 @@ impl Simulation {
         let moved = (tip - DVec3::from(self.state.tip_placed)).length();
         if has_tip && !edited && moved > self.contact.refresh {
             // The refreshed Tip node keeps the load it carried: its friction state and,
-            // with the per-length model, the tissue's velocity and its strain of the
-            // tissue around it (its elastic offset), so the load ahead of the tip is
-            // carried on, not released.
-            let (state, v, offset) = self.tip_load(known.take().as_deref())?;
+            // with the per-length model, the tissue's velocity and the material at the
+            // tip, so the load ahead of the tip is carried on, not released.
+            let (state, v, placement) = self.tip_load(known.take().as_deref(), tip)?;
             edited = true;
             let v = if per_length { v } else { v_tip };
             let sd = seeds(&self.state.nodes);
             self.remove().map_err(|e| self.edit(e))?;
-            self.add_with_offset(NodeRole::Tip, tip, now.length(), &sd, v, state, offset)
+            self.add_placed(NodeRole::Tip, tip, now.length(), &sd, v, state, placement)
                 .map_err(|e| self.edit(e))?;
             self.state.tip_placed = tip.to_array();
             pos.pop();
@@ -478,28 +492,50 @@ impl Simulation {
         Ok(())
     }
 
-    /// What the Tip node (the last node) carries into its replacement: its friction state,
-    /// velocity and, with the per-length model, its elastic offset (the paper's refresh
-    /// places it strain-free).
+    /// What the Tip node (the last node) carries into its replacement at `tip`: its
+    /// friction state, velocity and, with the per-length model, the material at the tip.
+    /// The replacement's rest position is the old node's, moved by the local affine map
+    /// ([`crate::material_point`]) over the way from where the old node would be at the
+    /// end of the step to `tip` (nothing while it sticks to the needle). When that way is
+    /// longer than half a node spacing (a needle jerked through the tissue), the map is
+    /// not trusted so far: the replacement strains the tissue around it as the old one
+    /// did (its elastic offset). The paper's refresh places it strain-free.
     /// `known`: the needle nodes' velocities, if read since the last edit.
     fn tip_load(
         &mut self,
         known: Option<&[Vec4]>,
-    ) -> Result<(FrictionState, DVec3, [f64; 3]), SimulationError> {
+        tip: DVec3,
+    ) -> Result<(FrictionState, DVec3, Placement), SimulationError> {
         let k = self.state.nodes.len() - 1;
         let state = self.state.nodes[k].friction;
         let v = self
             .node_velocity(k, known)
             .map_err(|e| self.edit(e.into()))?;
-        let offset = if self.contact.per_length().is_some() {
-            let index = self.state.nodes[k].index;
-            self.editor
-                .elastic_offset(self.backend.as_mut(), index)
-                .map_err(|e| self.edit(e))?
-        } else {
-            [0.0; 3]
+        if self.contact.per_length().is_none() {
+            return Ok((state, v, Placement::Offset([0.0; 3])));
+        }
+        let index = self.state.nodes[k].index;
+        let mut nodes = self.mesh_neighbours(index);
+        nodes.push(index);
+        let mut pos = vec![[0.0f32; 4]; nodes.len()];
+        self.backend
+            .read_nodes(NodeField::Position, &nodes, &mut pos)
+            .map_err(|e| self.edit(e.into()))?;
+        let x_old = xyz(pos.pop().expect("the Tip node")) + v * self.stepper.dt();
+        nodes.pop();
+        let fit = self.fit_around(x_old, &nodes, &pos);
+        let placement = match fit {
+            Some(fit) if (tip - x_old).length() <= 0.5 * self.spacing => {
+                let rest = DVec3::from(self.rest_of(index)) + fit.gradient * (tip - x_old);
+                Placement::Rest(rest.to_array())
+            }
+            _ => Placement::Offset(
+                self.editor
+                    .elastic_offset(self.backend.as_mut(), index)
+                    .map_err(|e| self.edit(e))?,
+            ),
         };
-        Ok((state, v, offset))
+        Ok((state, v, placement))
     }
 
     /// Velocity and friction state of a Shaft node added inside: with the per-length

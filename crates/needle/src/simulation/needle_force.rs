@@ -55,10 +55,37 @@ impl Simulation {
         let mut total = DVec3::ZERO;
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
         self.state.pinned_axial = 0.0;
+        self.state.tissue_depth = None;
         if m > 0 {
             let n0 = self.editor.n_mesh();
+            // The node at the crack front: the Tip node, or the deepest node until the Tip
+            // node is added (none once the tip has left the body).
+            let front = match self.state.phase {
+                Phase::Inside => {
+                    let s = |k: usize| (xyz(self.state.positions[k]) - base).dot(t);
+                    (0..m).max_by(|&a, &b| s(a).total_cmp(&s(b))).unwrap_or(0)
+                }
+                _ => usize::MAX,
+            };
+            // The needle nodes' forces and, with the tip inside, the positions of the
+            // mesh nodes around the crack front (for the tissue at the tip), in one read.
+            let around = match front < m {
+                true => self.mesh_neighbours(self.state.nodes[front].index),
+                false => Vec::new(),
+            };
             let mut f = vec![[0.0f32; 4]; m];
-            self.backend.read(NodeField::Force, n0..n0 + m, &mut f)?;
+            let mut near = vec![[0.0f32; 4]; around.len()];
+            if around.is_empty() {
+                self.backend.read(NodeField::Force, n0..n0 + m, &mut f)?;
+            } else {
+                self.backend.read_many(
+                    &[
+                        (NodeField::Force, (n0..n0 + m).into()),
+                        (NodeField::Position, around.as_slice().into()),
+                    ],
+                    &mut [&mut f, &mut near],
+                )?;
+            }
             // The positions `constrain` wrote: the force evaluation does not move nodes.
             let p = std::mem::take(&mut self.state.positions);
             let s: Vec<f64> = p.iter().map(|x| (xyz(*x) - base).dot(t)).collect();
@@ -73,19 +100,36 @@ impl Simulation {
             let cutting = tip_depth >= self.state.cut_depth - 1e-9;
             self.state.cut_depth = self.state.cut_depth.max(tip_depth);
             let mut released = Vec::new();
-            // The node at the crack front: the Tip node, or the deepest node until the Tip
-            // node is added (none once the tip has left the body).
-            let front = match self.state.phase {
-                Phase::Inside => (0..m).max_by(|&a, &b| s[a].total_cmp(&s[b])).unwrap_or(0),
-                _ => usize::MAX,
+            // The tissue at the tip: the front node's own rest position (the material it
+            // holds), moved by the local affine map over the front node's offset from
+            // the tip (it slips behind the tip while cutting); its region.
+            let material = match front < m {
+                true => {
+                    let (x_front, tip) = (xyz(p[front]), DVec3::from(now.tip()));
+                    self.fit_around(tip, &around, &near).map(|fit| {
+                        let x0 = DVec3::from(self.rest_of(self.state.nodes[front].index))
+                            + fit.gradient * (tip - x_front);
+                        (x0, self.region_at(x0, &around))
+                    })
+                }
+                false => None,
+            };
+            let surface_rest = || DVec3::from(self.rest_of(self.state.nodes[0].index));
+            self.state.tissue_depth = match self.state.phase {
+                Phase::Touching => Some(0.0),
+                Phase::Inside => material.map(|(x0, _)| (x0 - surface_rest()).dot(t)),
+                Phase::ExitTouching => {
+                    let exit = self.state.nodes[m - 1].index;
+                    Some((DVec3::from(self.rest_of(exit)) - surface_rest()).dot(t))
+                }
+                Phase::Outside | Phase::Exited => None,
             };
             // The crack front meeting another region: a membrane to dent and puncture, or
             // none to cross (pulled back or re-advancing in its track, no membrane).
-            if front < m {
-                let r = self.state.nodes[front].region;
+            if let Some((_, r)) = material {
                 let current = self.state.region.unwrap_or(r);
                 // A membrane being dented stays so until it gives or the tip is pulled
-                // back: the front's rest position can drift through compressed tissue.
+                // back.
                 if !cutting {
                     self.state.denting = None;
                 }
@@ -147,7 +191,14 @@ impl Simulation {
                             gravity: gravity.dot(t),
                         };
                         let (state, phi) = per_length_step(node.friction, &step, &lim);
-                        if k == front && state == FrictionState::Slip && phi > 0.0 {
+                        // The membrane gives when the front, held by it, starts to slip
+                        // forward (a front still slipping from before it met the membrane
+                        // is first caught: it slows to the needle's speed under the raised
+                        // limit).
+                        let gave = node.friction == FrictionState::Stick
+                            && state == FrictionState::Slip
+                            && phi > 0.0;
+                        if k == front && gave {
                             // The membrane gave: punctured.
                             if let Some(r) = self.state.denting.take() {
                                 self.state.region = Some(r);
