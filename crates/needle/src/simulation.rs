@@ -497,11 +497,29 @@ impl Simulation {
     /// The region of rest position `x0`: that of the node among `nodes` nearest to it at
     /// rest (region 0 without nodes).
     fn region_at(&self, x0: DVec3, nodes: &[u32]) -> u16 {
-        let d = |j: u32| DVec3::from(self.rest[j as usize]).distance_squared(x0);
-        nodes
-            .iter()
-            .min_by(|&&a, &&b| d(a).total_cmp(&d(b)).then(a.cmp(&b)))
-            .map_or(0, |&j| self.node_region[j as usize])
+        self.region_near(x0, nodes, None)
+    }
+
+    /// [`Simulation::region_at`] with hysteresis: region `keep` stays while one of its
+    /// nodes is within `h / 4` of the nearest node's distance, so that a material point
+    /// jittering about an interface (midway between node planes) does not flip between
+    /// the two regions every step.
+    fn region_near(&self, x0: DVec3, nodes: &[u32], keep: Option<u16>) -> u16 {
+        let d = |j: u32| DVec3::from(self.rest[j as usize]).distance(x0);
+        let nearest = |region: Option<u16>| {
+            nodes
+                .iter()
+                .filter(|&&j| region.is_none_or(|r| self.node_region[j as usize] == r))
+                .map(|&j| (d(j), j))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+        };
+        let Some((best, j)) = nearest(None) else {
+            return 0;
+        };
+        match keep.and_then(|r| nearest(Some(r)).map(|(dk, _)| (r, dk))) {
+            Some((r, dk)) if dk <= best + 0.25 * self.spacing => r,
+            _ => self.node_region[j as usize],
+        }
     }
 
     /// The material point under world point `x` from the mesh nodes `nodes` at current

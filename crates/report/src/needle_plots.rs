@@ -1,6 +1,8 @@
-//! The needle force plots of a run: `needle_force.png` (force against depth) and
-//! `needle_force_time.png` (force against time), drawn from the `needle_force.csv` that
-//! [`needlesim::run_scene`] writes for a scene with a needle. The `needlesim run` command
+//! The needle force plots of a run: `needle_force.png` (force against depth past first
+//! contact), `needle_force_time.png` (force against time) and, when the tip entered the
+//! tissue, `needle_force_tissue_depth.png` (force against the tip's depth in the
+//! undeformed tissue, where membranes lie at their rest depths), drawn from the
+//! `needle_force.csv` that [`needlesim::run_scene`] writes for a scene with a needle. The `needlesim run` command
 //! draws them when the run ends, however it ends (the CSV is complete up to the last
 //! step then).
 
@@ -8,13 +10,18 @@ use crate::plot::{line_plot, Labels, Series};
 use needlesim::needle_output::NEEDLE_CSV_HEADER;
 use std::path::{Path, PathBuf};
 
-/// The force plot files, by name, in a run's output folder.
-pub const NEEDLE_PLOT_FILES: [&str; 2] = ["needle_force.png", "needle_force_time.png"];
+/// The force plot files, by name, in a run's output folder (the third only when the
+/// tip entered the tissue).
+pub const NEEDLE_PLOT_FILES: [&str; 3] = [
+    "needle_force.png",
+    "needle_force_time.png",
+    "needle_force_tissue_depth.png",
+];
 
-/// The rows of `needle_force.csv`: time (s), depth (m), axial and lateral force (N), and
-/// the row indices where the tip entered a new region (a puncture: the region column
+/// The rows of `needle_force.csv`: time (s), depth (m), axial and lateral force (N), the
+/// tissue depth (m, NaN where the CSV has none), and the row indices where the tip entered a new region (a puncture: the region column
 /// changes to another non-empty name).
-fn parse(text: &str) -> Result<(Vec<[f64; 4]>, Vec<usize>), String> {
+fn parse(text: &str) -> Result<(Vec<[f64; 5]>, Vec<usize>), String> {
     let mut lines = text.lines();
     if lines.next() != Some(NEEDLE_CSV_HEADER) {
         return Err("not a needle_force.csv (unexpected header)".into());
@@ -29,7 +36,11 @@ fn parse(text: &str) -> Result<(Vec<[f64; 4]>, Vec<usize>), String> {
                 .and_then(|s| s.parse().ok())
                 .ok_or_else(|| format!("line {}: column {} is not a number", k + 2, i + 1))
         };
-        rows.push([v(1)?, v(2)?, v(3)?, v(4)?]);
+        let tissue = match c.get(9).copied().unwrap_or("") {
+            "" => f64::NAN,
+            _ => v(9)?,
+        };
+        rows.push([v(1)?, v(2)?, v(3)?, v(4)?, tissue]);
         let r = c.get(8).copied().unwrap_or("");
         if !r.is_empty() && r != region {
             punctures.push(k);
@@ -42,7 +53,7 @@ fn parse(text: &str) -> Result<(Vec<[f64; 4]>, Vec<usize>), String> {
 }
 
 /// Vertical marks at `x(row)` for the puncture rows, spanning the force range.
-fn marks(rows: &[[f64; 4]], punctures: &[usize], x: &dyn Fn(&[f64; 4]) -> f64) -> Vec<(f64, f64)> {
+fn marks(rows: &[[f64; 5]], punctures: &[usize], x: &dyn Fn(&[f64; 5]) -> f64) -> Vec<(f64, f64)> {
     let (lo, hi) = rows.iter().fold((0.0f64, 0.0f64), |(a, b), r| {
         (a.min(r[2]).min(r[3]), b.max(r[2]).max(r[3]))
     });
@@ -65,7 +76,7 @@ pub fn needle_plots(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
             format!("{}: {e}", csv.display()),
         )
     })?;
-    let series = |x: &dyn Fn(&[f64; 4]) -> f64| -> [Series<'static>; 3] {
+    let series = |x: &dyn Fn(&[f64; 5]) -> f64| -> [Series<'static>; 3] {
         [
             Series {
                 label: "puncture (tip enters a region)",
@@ -104,7 +115,21 @@ pub fn needle_plots(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
         },
         &series(&|r| r[0]),
     )?;
-    Ok(vec![by_depth, by_time])
+    let mut files = vec![by_depth, by_time];
+    if rows.iter().any(|r| r[4].is_finite()) {
+        let by_tissue = dir.join(NEEDLE_PLOT_FILES[2]);
+        line_plot(
+            &by_tissue,
+            &Labels {
+                title: "needle force against depth in the undeformed tissue",
+                x: "tip depth in the tissue at rest, past the entry point (mm)",
+                y: "force on needle (N)",
+            },
+            &series(&|r| r[4] * 1e3),
+        )?;
+        files.push(by_tissue);
+    }
+    Ok(files)
 }
 
 #[cfg(test)]
@@ -112,24 +137,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn draws_both_plots_from_the_csv() {
+    fn draws_the_plots_from_the_csv() {
         let dir = tempfile::tempdir().unwrap();
         let mut csv = format!("{NEEDLE_CSV_HEADER}\n");
         for k in 0..200 {
             let t = k as f64 * 1e-3;
             csv.push_str(&format!(
-                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4,{}\n",
+                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4,{},{}\n",
                 t * 0.01 - 1e-4,
                 (t * 30.0).sin(),
                 0.1 * t,
-                if k < 100 { "skin" } else { "fat" }
+                if k < 100 { "skin" } else { "fat" },
+                if k < 50 {
+                    String::new()
+                } else {
+                    format!("{:.6e}", t * 0.005)
+                }
             ));
         }
         let (rows, punctures) = parse(&csv).unwrap();
         assert_eq!((rows.len(), punctures), (200, vec![0, 100]));
-        std::fs::write(dir.path().join("needle_force.csv"), csv).unwrap();
+        assert!(rows[49][4].is_nan() && (rows[100][4] - 0.5e-3).abs() < 1e-12);
+        std::fs::write(dir.path().join("needle_force.csv"), &csv).unwrap();
         let files = needle_plots(dir.path()).unwrap();
-        assert_eq!(files.len(), 2);
+        assert_eq!(files.len(), 3);
         for f in files {
             assert!(
                 std::fs::metadata(&f).unwrap().len() > 5000,
@@ -137,6 +168,16 @@ mod tests {
                 f.display()
             );
         }
+        // Without a tissue depth (the tip never inside) the third plot is not drawn.
+        let none: String = csv
+            .lines()
+            .map(|l| match l.rsplit_once(',') {
+                Some((head, _)) if !l.starts_with("step") => format!("{head},\n"),
+                _ => format!("{l}\n"),
+            })
+            .collect();
+        std::fs::write(dir.path().join("needle_force.csv"), none).unwrap();
+        assert_eq!(needle_plots(dir.path()).unwrap().len(), 2);
         std::fs::write(dir.path().join("needle_force.csv"), "a,b\n1,2\n").unwrap();
         let e = needle_plots(dir.path()).unwrap_err();
         assert!(e.to_string().contains("unexpected header"), "{e}");

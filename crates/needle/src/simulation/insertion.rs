@@ -15,8 +15,9 @@
 //! the tip carries is not released by a refresh, so the force has no sawtooth at the
 //! refresh period.
 //!
-//! A needle node that the tissue pushes ahead of an advancing tip (the shaft no longer
-//! holding the tissue it is in) stops the run with [`SimulationError::NodesLost`].
+//! A Shaft node that the tissue pushes more than h / 2 ahead of an advancing tip (the
+//! shaft no longer holding the tissue it is in) stops the run with
+//! [`SimulationError::NodesLost`]; less than that, it is removed.
 
 use super::{at, vec4, xyz, Simulation};
 use crate::config::Membrane;
@@ -364,7 +365,19 @@ impl Simulation {
                 role,
                 ahead,
             };
-            match shaft_edit(has_tip, role, d, h) {
+            // A Shaft node the tissue has crowded onto the node behind it (within h / 4
+            // along the shaft: the shaft behind a dented membrane, compressed along it)
+            // is taken off; the rules re-add one h past the node behind if the tip is far
+            // enough. Coincident nodes would leave the meshfree neighbourhoods singular.
+            let crowded = role == NodeRole::Shaft
+                && last > 0
+                && (pos[last] - pos[last - 1]).dot(t) < 0.25 * h;
+            let edit = match (crowded, has_tip) {
+                (true, true) => ShaftEdit::LiftTip,
+                (true, false) => ShaftEdit::RemoveShaft,
+                (false, _) => shaft_edit(has_tip, role, d, h),
+            };
+            match edit {
                 ShaftEdit::LiftTip => {
                     // Taken off to edit the shaft behind it: re-added below with its load.
                     if carried.is_none() {
@@ -374,7 +387,10 @@ impl Simulation {
                     pos.pop();
                 }
                 ShaftEdit::RemoveShaft => {
-                    if advancing && d < 0.0 {
+                    // A node up to h / 2 past the tip was carried there by the tissue
+                    // springing back over the tip (a membrane just punctured): removed,
+                    // as any node closer than h / 2. Farther, the shaft lost its grip.
+                    if advancing && d < -0.5 * h {
                         return Err(lost(self, -d));
                     }
                     self.remove().map_err(|e| self.edit(e))?;

@@ -61,6 +61,7 @@ impl Simulation {
             // The node at the crack front: the Tip node, or the deepest node until the Tip
             // node is added (none once the tip has left the body).
             let front = match self.state.phase {
+                Phase::Inside if self.state.nodes[m - 1].role == NodeRole::Tip => m - 1,
                 Phase::Inside => {
                     let s = |k: usize| (xyz(self.state.positions[k]) - base).dot(t);
                     (0..m).max_by(|&a, &b| s(a).total_cmp(&s(b))).unwrap_or(0)
@@ -109,7 +110,7 @@ impl Simulation {
                     self.fit_around(tip, &around, &near).map(|fit| {
                         let x0 = DVec3::from(self.rest_of(self.state.nodes[front].index))
                             + fit.gradient * (tip - x_front);
-                        (x0, self.region_at(x0, &around))
+                        (x0, self.region_near(x0, &around, self.state.region))
                     })
                 }
                 false => None,
@@ -125,7 +126,9 @@ impl Simulation {
                 Phase::Outside | Phase::Exited => None,
             };
             // The crack front meeting another region: a membrane to dent and puncture, or
-            // none to cross (pulled back or re-advancing in its track, no membrane).
+            // none to cross (re-advancing in its track, no membrane). An intact membrane
+            // is never crossed without being punctured, even while pulled back (the
+            // material point jitters about the interface).
             if let Some((_, r)) = material {
                 let current = self.state.region.unwrap_or(r);
                 // A membrane being dented stays so until it gives or the tip is pulled
@@ -136,8 +139,10 @@ impl Simulation {
                 if r != current && self.state.denting.is_none() {
                     let fresh = !self.state.punctured.contains(&r);
                     match self.contact.layers[r as usize].membrane {
-                        Membrane::Force(_) | Membrane::Impenetrable if cutting && fresh => {
-                            self.state.denting = Some(r);
+                        Membrane::Force(_) | Membrane::Impenetrable if fresh => {
+                            if cutting {
+                                self.state.denting = Some(r);
+                            }
                         }
                         _ => self.state.region = Some(r),
                     }
