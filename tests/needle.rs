@@ -4,9 +4,10 @@
 
 mod common;
 
+use common::{cpu_sim, gpu_sim, same_states_force_difference};
+
 use needlesim::core::models::ShapeArray;
 use needlesim::core::{NodeSelection, Vec4};
-use needlesim::gpu::{GpuBackend, GpuError};
 use needlesim::needle::{PunctureState, Simulation};
 use needlesim::{
     run_scene, Backend, CpuBackend, NodeField, RunOptions, Scene, SimError, Threading,
@@ -24,12 +25,6 @@ fn scene_with_keyframes(keyframes: &str) -> Scene {
         .unwrap()
         .to_string();
     Scene::from_toml_str(&(base + keyframes), Path::new("scenes")).unwrap()
-}
-
-fn cpu_sim(scene: &Scene) -> Simulation {
-    let prep = Simulation::prepare(scene).unwrap();
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
-    prep.start(Box::new(b)).unwrap()
 }
 
 /// Runs `steps` steps, checking after each that the neighbour lists are mutual (Newton's
@@ -208,42 +203,6 @@ fn paper_experiment_runs_on_every_model() {
         };
         assert!(lateral(3.5, 4.0) > 5.0 * lateral(2.0, 3.0), "{m}");
     }
-}
-
-fn gpu_sim(scene: &Scene) -> Option<Simulation> {
-    let prep = Simulation::prepare(scene).unwrap();
-    match GpuBackend::new(&prep.tissue) {
-        Ok(b) => Some(prep.start(Box::new(b)).unwrap()),
-        Err(GpuError::NoAdapter(m)) if std::env::var("NEEDLESIM_REQUIRE_GPU").is_err() => {
-            eprintln!("skipped, no GPU adapter: {m}");
-            None
-        }
-        Err(e) => panic!("GPU backend: {e}"),
-    }
-}
-
-/// Asserts the same puncture state and needle node count at every step of two runs, and
-/// returns the largest |axial force| of `hc` and the largest per-step axial force
-/// difference up to time `until`, relative to that scale.
-fn same_states_force_difference(
-    hg: &[needlesim::needle::NeedleSample],
-    hc: &[needlesim::needle::NeedleSample],
-    until: f64,
-) -> (f64, f64) {
-    let scale = hc.iter().map(|s| s.force.axial.abs()).fold(0.0, f64::max);
-    let mut largest = 0.0f64;
-    for (a, b) in hg.iter().zip(hc) {
-        assert_eq!(
-            (a.state, a.needle_nodes),
-            (b.state, b.needle_nodes),
-            "step {}",
-            a.step
-        );
-        if a.time <= until {
-            largest = largest.max((a.force.axial - b.force.axial).abs() / scale);
-        }
-    }
-    (scale, largest)
 }
 
 /// The paper's scene (LSHM) on the GPU and on the CPU: the same state and needle node

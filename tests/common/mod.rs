@@ -1,6 +1,8 @@
 #![allow(dead_code)]
 use needlesim::core::geometry;
 use needlesim::core::scene::ShapeMatchingForces;
+use needlesim::gpu::{GpuBackend, GpuError};
+use needlesim::needle::{NeedleSample, Simulation};
 use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, Threading, Tissue};
 
 /// The rotation-invariant force models under test: (label, material).
@@ -65,4 +67,49 @@ pub fn norm3(v: [f32; 4]) -> f64 {
 
 pub fn max_norm(v: &[[f32; 4]]) -> f64 {
     v.iter().map(|x| norm3(*x)).fold(0.0, f64::max)
+}
+
+/// A simulation of `scene` on the single-threaded CPU backend.
+pub fn cpu_sim(scene: &Scene) -> Simulation {
+    let prep = Simulation::prepare(scene).unwrap();
+    let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
+    prep.start(Box::new(b)).unwrap()
+}
+
+/// A simulation of `scene` on the GPU backend; `None` (skipped) when no adapter is found
+/// and `NEEDLESIM_REQUIRE_GPU` is not set.
+pub fn gpu_sim(scene: &Scene) -> Option<Simulation> {
+    let prep = Simulation::prepare(scene).unwrap();
+    match GpuBackend::new(&prep.tissue) {
+        Ok(b) => Some(prep.start(Box::new(b)).unwrap()),
+        Err(GpuError::NoAdapter(m)) if std::env::var("NEEDLESIM_REQUIRE_GPU").is_err() => {
+            eprintln!("skipped, no GPU adapter: {m}");
+            None
+        }
+        Err(e) => panic!("GPU backend: {e}"),
+    }
+}
+
+/// Asserts the same puncture state and needle node count at every step of two runs, and
+/// returns the largest |axial force| of `hc` and the largest per-step axial force
+/// difference up to time `until`, relative to that scale.
+pub fn same_states_force_difference(
+    hg: &[NeedleSample],
+    hc: &[NeedleSample],
+    until: f64,
+) -> (f64, f64) {
+    let scale = hc.iter().map(|s| s.force.axial.abs()).fold(0.0, f64::max);
+    let mut largest = 0.0f64;
+    for (a, b) in hg.iter().zip(hc) {
+        assert_eq!(
+            (a.state, a.needle_nodes),
+            (b.state, b.needle_nodes),
+            "step {}",
+            a.step
+        );
+        if a.time <= until {
+            largest = largest.max((a.force.axial - b.force.axial).abs() / scale);
+        }
+    }
+    (scale, largest)
 }
