@@ -1,7 +1,9 @@
 //! The report's needle section: the liver scene's force against depth over the published
 //! band, the smoothness of the needle force for every model (median step-to-step change
 //! and the share of its power above 50 Hz during the paper's rotation and the pause after
-//! it), and the force-depth slope at two resolutions.
+//! it), the force-depth slope at two resolutions, and the layered liver biopsy scene's
+//! membranes (peak, its depth in the undeformed tissue, the drop after it) and the slope
+//! in each layer.
 //!
 //! Published band (cited in `scenes/liver_insertion.toml`): a puncture peak of 1 to 3 N
 //! and a force-depth slope after puncture of 35 to 59 N/m (J Endourol 2016,
@@ -34,19 +36,124 @@ pub struct NeedleReport {
     pub smoothness: Vec<Smoothness>,
     /// Slope per resolution: (nodes, needle spacing m, slope N/m).
     pub slopes: Vec<(usize, f64, f64)>,
+    /// The layered scene, one row per region the tip entered while advancing.
+    pub layers: Vec<LayerRow>,
+    /// Seconds of the layered scene simulated.
+    pub layers_seconds: f64,
     /// The liver run's (depth mm, axial N) for the plot.
     curve: Vec<(f64, f64)>,
 }
 
+/// A region the tip entered in the layered scene (`scenes/layered_liver_biopsy.toml`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LayerRow {
+    /// Region name.
+    pub region: String,
+    /// The tip's depth in the undeformed tissue when it entered, m.
+    pub entered_at: f64,
+    /// Entered by puncturing a membrane (the tip was denting it the step before): the
+    /// largest axial force from 0.05 s after the previous entry up to this one (the
+    /// puncture peak), N, and the tip's depth in the undeformed tissue there, m (0 for the
+    /// entry surface). `None` for an interface without a membrane.
+    pub peak: Option<(f64, f64)>,
+    /// The smallest axial force within 0.05 s after entering, N.
+    pub after: f64,
+    /// Slope of the axial force against the tissue depth while advancing in the region,
+    /// from one node spacing past the entry to half a spacing before the next entry, N/m;
+    /// `None` when that span is shorter than two spacings.
+    pub slope: Option<f64>,
+}
+
 fn sim_of(text: &str, base: &Path) -> Result<Simulation, ReportError> {
+    sim_for(text, base, None)
+}
+
+/// The scene run for its `run.steps`, or for `seconds` if fewer.
+fn sim_for(text: &str, base: &Path, seconds: Option<f64>) -> Result<Simulation, ReportError> {
     let scene = Scene::from_toml_str(text, base)
         .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
     let prep = Simulation::prepare(&scene)?;
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
         .map_err(needlesim::runner::RunError::from)?;
     let mut sim = prep.start(Box::new(b))?;
-    sim.step_n(scene.run.steps)?;
+    let steps = match seconds {
+        Some(t) => scene.run.steps.min((t / sim.dt()).ceil() as u64),
+        None => scene.run.steps,
+    };
+    sim.step_n(steps)?;
     Ok(sim)
+}
+
+/// The rows of [`LayerRow`] from a layered run's `history` (`names` the region names,
+/// `dt` the step, `spacing` the node spacing, all m and s), over the samples up to time
+/// `advancing_until` (the end of the insertion).
+pub fn layer_rows(
+    history: &[NeedleSample],
+    names: &[String],
+    dt: f64,
+    spacing: f64,
+    advancing_until: f64,
+) -> Vec<LayerRow> {
+    let h: Vec<&NeedleSample> = history
+        .iter()
+        .filter(|s| s.time <= advancing_until)
+        .collect();
+    // Where the tip entered each region (the first time only).
+    let mut entries: Vec<(u16, usize)> = Vec::new();
+    for (k, s) in h.iter().enumerate() {
+        if let Some(r) = s.region {
+            if !entries.iter().any(|e| e.0 == r) {
+                entries.push((r, k));
+            }
+        }
+    }
+    let depth = |k: usize| h[k].tissue_depth.unwrap_or(0.0);
+    let after = (0.05 / dt).round() as usize;
+    let sp = spacing;
+    let mut rows = Vec::new();
+    for (i, &(r, at)) in entries.iter().enumerate() {
+        let from = if i == 0 { 0 } else { entries[i - 1].1 + after };
+        let punctured = at > 0 && h[at - 1].state == PunctureState::Touching;
+        let peak = punctured.then(|| {
+            let (k, f) = (from.min(at)..=at).map(|k| (k, h[k].force.axial)).fold(
+                (at, f64::NEG_INFINITY),
+                |a, b| if b.1 > a.1 { b } else { a },
+            );
+            (f, depth(k))
+        });
+        let low = h[at..(at + after).min(h.len())]
+            .iter()
+            .map(|s| s.force.axial)
+            .fold(f64::INFINITY, f64::min);
+        let entered_at = depth(at);
+        let (lo, hi) = (
+            entered_at + sp,
+            entries.get(i + 1).map_or(
+                h.iter().filter_map(|s| s.tissue_depth).fold(0.0, f64::max),
+                |e| depth(e.1),
+            ) - 0.5 * sp,
+        );
+        let (x, y): (Vec<f64>, Vec<f64>) = h[at..]
+            .iter()
+            .filter(|s| s.region == Some(r) && s.state == PunctureState::Inside)
+            .filter_map(|s| {
+                let d = s.tissue_depth.filter(|d| *d >= lo && *d <= hi)?;
+                Some((d, s.force.axial))
+            })
+            .unzip();
+        let slope = (hi - lo >= 2.0 * sp && x.len() > 10).then(|| line_fit(&x, &y).0);
+        rows.push(LayerRow {
+            region: names
+                .get(r as usize)
+                .cloned()
+                .unwrap_or_else(|| r.to_string()),
+            entered_at,
+            peak,
+            after: low,
+            slope,
+        });
+    }
+    rows
 }
 
 /// Slope (per unit x), R^2 and residual standard deviation of a least-squares line.
@@ -214,6 +321,31 @@ pub fn run_needle(full: bool, progress: &mut dyn FnMut(&str)) -> Result<NeedleRe
         ));
         rep.slopes.push((sim.editor().n_mesh(), spacing, slope));
     }
+    // The layered scene: insertion and hold (the whole run with extraction when full).
+    let layered = read("layered_liver_biopsy.toml")?;
+    let insertion = 5.0;
+    let sim = sim_for(&layered, &scenes, (!full).then_some(insertion + 0.5))?;
+    rep.layers = layer_rows(
+        sim.history(),
+        sim.region_names(),
+        sim.dt(),
+        sim.spacing(),
+        insertion,
+    );
+    rep.layers_seconds = sim.time();
+    for l in &rep.layers {
+        progress(&format!(
+            "needle       layered: {} entered at {:.2} mm, {}, {:.3} N 0.05 s later, slope {}",
+            l.region,
+            1e3 * l.entered_at,
+            l.peak.map_or("no membrane".into(), |(f, d)| format!(
+                "peak {f:.3} N at {:.2} mm",
+                1e3 * d
+            )),
+            l.after,
+            l.slope.map_or("-".into(), |s| format!("{s:.1} N/m"))
+        ));
+    }
     Ok(rep)
 }
 
@@ -244,6 +376,18 @@ pub fn write_needle(out: &Path, r: &NeedleReport) -> std::io::Result<()> {
             "slope_n_per_m_needle_spacing_{h:.4},lshm-cluster,{n},{s:e}"
         )
         .unwrap();
+    }
+    for l in &r.layers {
+        let g = &l.region;
+        writeln!(csv, "layer_entered_at_m,{g},,{:e}", l.entered_at).unwrap();
+        if let Some((f, d)) = l.peak {
+            writeln!(csv, "layer_peak_n,{g},,{f:e}").unwrap();
+            writeln!(csv, "layer_peak_at_m,{g},,{d:e}").unwrap();
+        }
+        writeln!(csv, "layer_force_after_n,{g},,{:e}", l.after).unwrap();
+        if let Some(s) = l.slope {
+            writeln!(csv, "layer_slope_n_per_m,{g},,{s:e}").unwrap();
+        }
     }
     std::fs::write(out.join("needle.csv"), csv)?;
     // Force against depth with the band: the peak band at the puncture depth, the slope
@@ -331,4 +475,115 @@ pub fn markdown(md: &mut String, r: &NeedleReport) {
         writeln!(md, "| {n} | {h:.4} | {s:.3} |").unwrap();
     }
     writeln!(md).unwrap();
+    if !r.layers.is_empty() {
+        writeln!(
+            md,
+            "### Layered tissue
+"
+        )
+        .unwrap();
+        writeln!(md, "`scenes/layered_liver_biopsy.toml` ({:.1} s simulated): skin 0-4.5 mm, fat to 25.5 mm, muscle to 37.5 mm, liver beyond (as the scene states); membranes at the entry surface, the fascia over the muscle and the liver capsule. Depths are the tip's in the undeformed tissue; a membrane's peak should lie within one node spacing (3 mm) of its rest depth. Slope: axial force against tissue depth while advancing in the layer.\n", r.layers_seconds).unwrap();
+        writeln!(md, "| region entered | entered at (mm) | membrane peak (N) | peak at (mm) | 0.05 s after (N) | slope in layer (N/m) |").unwrap();
+        writeln!(md, "|---|---:|---:|---:|---:|---:|").unwrap();
+        for l in &r.layers {
+            writeln!(
+                md,
+                "| {} | {:.2} | {} | {:.3} | {} |",
+                l.region,
+                1e3 * l.entered_at,
+                l.peak.map_or("none | -".into(), |(f, d)| format!(
+                    "{f:.3} | {:.2}",
+                    1e3 * d
+                )),
+                l.after,
+                l.slope.map_or("-".into(), |s| format!("{s:.1}"))
+            )
+            .unwrap();
+        }
+        writeln!(md).unwrap();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use needlesim_needle::NeedleForce;
+
+    /// A synthetic record at 1 ms steps: the tip dents the entry surface (force rising to
+    /// 1.98 N), enters `a` (drop to 0.1 N, then 10 N/m against depth), crosses into `b` at
+    /// 8 mm without a membrane (30 N/m), dents `c`'s membrane from 15 to 16 mm (force
+    /// rising to 1.4 N) and enters `c` (10 N/m).
+    fn record() -> Vec<NeedleSample> {
+        let mut h = Vec::new();
+        let sample = |k: usize, state, region, depth: Option<f64>, f: f64| NeedleSample {
+            step: k as u64,
+            time: k as f64 * 1e-3,
+            tip: [0.0; 3],
+            direction: [1.0, 0.0, 0.0],
+            force: NeedleForce {
+                axial: f,
+                ..Default::default()
+            },
+            state,
+            active_nodes: 0,
+            needle_nodes: 0,
+            region,
+            tissue_depth: depth,
+        };
+        let mut k = 0;
+        for i in 0..100 {
+            h.push(sample(
+                k,
+                PunctureState::Touching,
+                None,
+                Some(0.0),
+                0.02 * i as f64,
+            ));
+            k += 1;
+        }
+        let mut d = 0.0;
+        while d < 0.024 {
+            let (region, f) = match d {
+                d if d < 0.008 => (0, 0.1 + 10.0 * d),
+                d if d < 0.016 => (1, 0.18 + 30.0 * (d - 0.008)),
+                // Denting `c`'s membrane from 15 to 16 mm, then inside.
+                _ => (2, 0.2 + 10.0 * (d - 0.016)),
+            };
+            let denting = (0.015..0.016).contains(&d);
+            let (state, r, f) = match denting {
+                true => (PunctureState::Touching, Some(1), 0.4 + 1000.0 * (d - 0.015)),
+                false => (PunctureState::Inside, Some(region), f),
+            };
+            h.push(sample(k, state, r, Some(d), f));
+            k += 1;
+            d += 1e-5;
+        }
+        h
+    }
+
+    #[test]
+    fn layer_rows_find_each_puncture_and_slope() {
+        let names = ["a", "b", "c"].map(String::from);
+        let rows = layer_rows(&record(), &names, 1e-3, 1e-3, f64::INFINITY);
+        let regions: Vec<&str> = rows.iter().map(|r| r.region.as_str()).collect();
+        assert_eq!(regions, ["a", "b", "c"]);
+        // The entry: peak 1.98 N at depth 0; the drop to 0.1 N.
+        let (f, d) = rows[0].peak.unwrap();
+        assert!((f - 1.98).abs() < 1e-9 && d == 0.0, "{f} {d}");
+        assert!((rows[0].after - 0.1).abs() < 1e-6);
+        // No membrane between `a` and `b`.
+        assert_eq!(rows[1].peak, None);
+        // `c`'s membrane: the peak just before 16 mm, about 1.4 N.
+        let (f, d) = rows[2].peak.unwrap();
+        assert!(
+            (f - 1.4).abs() < 0.02 && (d - 0.016).abs() < 2e-5,
+            "{f} {d}"
+        );
+        // Slopes: each layer's, fitted from a spacing past its entry (exact: the record
+        // is linear there).
+        let slopes: Vec<f64> = rows.iter().map(|r| r.slope.unwrap()).collect();
+        for (s, want) in slopes.iter().zip([10.0, 30.0, 10.0]) {
+            assert!((s - want).abs() < 1e-6 * want, "{slopes:?}");
+        }
+    }
 }
