@@ -7,8 +7,8 @@ mod common;
 
 use common::{cpu_sim, gpu_sim, same_states_force_difference};
 use needlesim::core::regions::BASE_REGION;
-use needlesim::needle::{PunctureState, Simulation};
-use needlesim::{Backend, CpuBackend, NodeField, Scene, Threading, Tissue};
+use needlesim::needle::{PunctureState, Simulation, SimulationError};
+use needlesim::{Backend, CpuBackend, NodeField, Scene, SimError, Threading, Tissue};
 use std::path::Path;
 
 /// A 32 x 16 x 16 mm block, nodes `h` = 4 mm apart, held on its far face (x = 32 mm), in
@@ -199,8 +199,7 @@ fn an_impenetrable_layer_stops_the_tip() {
     let text = layered("debunne_meshfree", ["0.5", "impenetrable", "0.4"]);
     let mut sim = cpu_sim(&scene(&text));
     // To 14 mm of travel: the entry dent is about 6 mm, the membrane 10 mm deep. (Pressed
-    // further, a shaft node is pushed ahead of the tip and the run stops with NodesLost:
-    // see the closing note of issue 21.)
+    // further, the crushed tissue diverges: see the next test.)
     sim.step_n((1.05 / sim.dt()) as u64).unwrap();
     let h = sim.history();
     let outer = sim
@@ -223,6 +222,21 @@ fn an_impenetrable_layer_stops_the_tip() {
     );
     eprintln!("impenetrable: force {before:.3} N, 6 mm of travel later {last:.3} N");
     assert!(last > before + 0.1, "{before} {last}");
+}
+
+/// Pressed on an impenetrable layer for the whole insertion (soft layers, 10 mm of press
+/// and more), the run either completes or stops with the divergence guard's error: a
+/// diverging run is not reported as needle nodes lost (before, a shaft node flung 0.3 m
+/// ahead of the tip stopped it with `NodesLost`).
+#[test]
+fn a_run_diverging_against_an_impenetrable_layer_says_so() {
+    let text = layered("debunne_meshfree", ["0.5", "impenetrable", "0.4"]);
+    let mut sim = cpu_sim(&scene(&text));
+    match sim.step_n((1.6 / sim.dt()) as u64) {
+        Ok(()) => assert_eq!(sim.state(), PunctureState::Touching),
+        Err(SimulationError::Sim(SimError::Diverged { .. } | SimError::Runaway { .. })) => {}
+        Err(e) => panic!("expected a divergence error, got: {e}"),
+    }
 }
 
 /// Two layers in series under a prescribed end displacement, relaxed: the mean strain

@@ -17,7 +17,8 @@
 //!
 //! A Shaft node that the tissue pushes more than h / 2 ahead of an advancing tip (the
 //! shaft no longer holding the tissue it is in) stops the run with
-//! [`SimulationError::NodesLost`]; less than that, it is removed.
+//! [`SimulationError::NodesLost`], or with the divergence guard's error when a node is
+//! faster than `physics.max_speed` (a diverging run); less than that, it is removed.
 
 use super::{at, vec4, xyz, Simulation};
 use crate::config::Membrane;
@@ -359,11 +360,16 @@ impl Simulation {
             let last = nodes.len() - 1 - has_tip as usize;
             let role = nodes[last].role;
             let d = (tip - pos[last]).dot(t);
-            let lost = |sim: &Self, ahead: f64| SimulationError::NodesLost {
-                step: sim.stepper.steps(),
-                node: sim.state.nodes[last].index,
-                role,
-                ahead,
+            // A node far ahead is often the first sign of a diverging run: the divergence
+            // guard is asked first, so that a divergence is reported as one.
+            let lost = |sim: &mut Self, ahead: f64| match sim.check() {
+                Err(e) => e,
+                Ok(()) => SimulationError::NodesLost {
+                    step: sim.stepper.steps(),
+                    node: sim.state.nodes[last].index,
+                    role,
+                    ahead,
+                },
             };
             // A Shaft node the tissue has crowded onto the node behind it (within h / 4
             // along the shaft: the shaft behind a dented membrane, compressed along it)
