@@ -17,8 +17,9 @@
 //!
 //! A Shaft node that the tissue pushes more than h / 2 ahead of an advancing tip (the
 //! shaft no longer holding the tissue it is in) stops the run with
-//! [`SimulationError::NodesLost`], or with the divergence guard's error when a node is
-//! faster than `physics.max_speed` (a diverging run); less than that, it is removed.
+//! [`SimulationError::NodesLost`]; with the divergence guard's error instead when it is
+//! more than [`MAX_STEP_SPACINGS`] spacings ahead and some node is faster than
+//! `physics.max_speed` (a diverging run). Less than h / 2 ahead, it is removed.
 
 use super::{at, vec4, xyz, Simulation};
 use crate::config::Membrane;
@@ -360,11 +361,12 @@ impl Simulation {
             let last = nodes.len() - 1 - has_tip as usize;
             let role = nodes[last].role;
             let d = (tip - pos[last]).dot(t);
-            // A node far ahead is often the first sign of a diverging run: the divergence
-            // guard is asked first, so that a divergence is reported as one.
+            // A node farther ahead than the needle may move in a step is a sign of a
+            // diverging run: the divergence guard is asked first, so that a divergence is
+            // reported as one.
             let lost = |sim: &mut Self, ahead: f64| match sim.check() {
-                Err(e) => e,
-                Ok(()) => SimulationError::NodesLost {
+                Err(e) if ahead > MAX_STEP_SPACINGS * h => e,
+                _ => SimulationError::NodesLost {
                     step: sim.stepper.steps(),
                     node: sim.state.nodes[last].index,
                     role,
