@@ -12,7 +12,7 @@
 use crate::error::ReportError;
 use crate::plot::{line_plot, Labels, Series};
 use needlesim_core::{CpuBackend, Scene, Threading};
-use needlesim_needle::{NeedleSample, PunctureState, Simulation};
+use needlesim_needle::{Keyframe, NeedleConfig, NeedleSample, PunctureState, Simulation};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -82,6 +82,26 @@ fn sim_for(text: &str, base: &Path, seconds: Option<f64>) -> Result<Simulation, 
     };
     sim.step_n(steps)?;
     Ok(sim)
+}
+
+/// How long a scene's needle advances: the summed durations of the `move` keyframes its
+/// script opens with (0 when it opens with another action or has no needle).
+fn insertion_seconds(text: &str, base: &Path) -> Result<f64, ReportError> {
+    let scene = Scene::from_toml_str(text, base)
+        .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
+    let Some(table) = scene.needle.as_ref() else {
+        return Ok(0.0);
+    };
+    let needle = NeedleConfig::from_table(table)
+        .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
+    Ok(needle
+        .keyframe
+        .iter()
+        .map_while(|k| match k {
+            Keyframe::Move { duration, .. } => Some(*duration),
+            _ => None,
+        })
+        .sum())
 }
 
 /// The rows of [`LayerRow`] from a layered run's `history` (`names` the region names,
@@ -323,7 +343,7 @@ pub fn run_needle(full: bool, progress: &mut dyn FnMut(&str)) -> Result<NeedleRe
     }
     // The layered scene: insertion and hold (the whole run with extraction when full).
     let layered = read("layered_liver_biopsy.toml")?;
-    let insertion = 5.0;
+    let insertion = insertion_seconds(&layered, &scenes)?;
     let sim = sim_for(&layered, &scenes, (!full).then_some(insertion + 0.5))?;
     rep.layers = layer_rows(
         sim.history(),
@@ -585,5 +605,27 @@ mod tests {
         for (s, want) in slopes.iter().zip([10.0, 30.0, 10.0]) {
             assert!((s - want).abs() < 1e-6 * want, "{slopes:?}");
         }
+    }
+
+    #[test]
+    fn the_insertion_lasts_as_long_as_the_opening_moves() {
+        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+        let text = std::fs::read_to_string(scenes.join("layered_liver_biopsy.toml")).unwrap();
+        let moves = |t: &str| insertion_seconds(t, &scenes).unwrap();
+        assert_eq!(moves(&text), 6.0);
+        // Two opening moves add up; a pause first means no insertion.
+        let split = text.replace(
+            "duration = 6.0\n",
+            "duration = 2.5\n\n[[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.02\nduration = 1.25\n",
+        );
+        assert_eq!(moves(&split), 3.75);
+        let paused = text
+            .replacen("action = \"move\"", "action = \"pause\"", 1)
+            .replacen(
+                "direction = [1.0, 0.0, 0.0]\nspeed = 0.01\nduration = 6.0",
+                "duration = 6.0",
+                1,
+            );
+        assert_eq!(moves(&paused), 0.0);
     }
 }
