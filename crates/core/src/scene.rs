@@ -592,7 +592,8 @@ pub struct Physics {
     #[serde(default = "default_max_speed")]
     pub max_speed: f64,
     /// Steps between two divergence checks of a needle simulation (each reads every
-    /// node back from the GPU); runs also check at every output frame.
+    /// node back from the GPU); runs also check at every output frame, and the needle
+    /// nodes sliding on the shaft (read back every step anyway) are checked every step.
     #[serde(default = "default_check_every")]
     pub check_every: u64,
 }

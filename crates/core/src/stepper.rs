@@ -82,6 +82,11 @@ impl Stepper {
         Ok(())
     }
 
+    /// The divergence guard's speed bound, `physics.max_speed`, m/s.
+    pub fn max_speed(&self) -> f64 {
+        self.max_speed
+    }
+
     /// The divergence guard, reading positions and velocities back from the backend.
     pub fn check(&self, backend: &mut dyn Backend) -> Result<(), SimError> {
         check_bounded(backend, self.max_speed)

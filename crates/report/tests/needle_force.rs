@@ -246,3 +246,39 @@ fn a_needle_that_loses_its_nodes_is_an_error() {
         _ => panic!("expected lost nodes or a runaway: {e}"),
     }
 }
+
+/// The guard on the sliding needle nodes runs every step: with the periodic divergence
+/// check put off (`check_every` a million steps) and the speed bound lowered to 5 cm/s
+/// (below the speed of the Tip node thrown back as the skin gives), a sane insertion
+/// stops with the guard's error naming a needle node, at the first step one is faster.
+/// (This is how a node flung along the shaft is caught at once, not at the next periodic
+/// check after rows of huge forces.)
+#[test]
+fn the_sliding_needle_nodes_are_guarded_every_step() {
+    let text = INSERT_EXTRACT.replace(
+        "damping = 4.0\n",
+        "damping = 4.0\ncheck_every = 1000000\nmax_speed = 0.05\n",
+    );
+    let scene = Scene::from_toml_str(&text, Path::new("../../scenes")).unwrap();
+    assert_eq!(scene.physics.check_every, 1_000_000);
+    let prep = Simulation::prepare(&scene).unwrap();
+    let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
+    let mut sim = prep.start(Box::new(b)).unwrap();
+    let n_mesh = sim.editor().n_mesh();
+    let e = sim
+        .step_n(5000)
+        .expect_err("a needle node faster than 5 cm/s");
+    let SimulationError::Sim(SimError::Runaway {
+        node,
+        speed,
+        limit,
+        step,
+    }) = e
+    else {
+        panic!("expected the guard's runaway error: {e}");
+    };
+    println!("stopped at step {step}: needle node {node} at {speed:.3e} m/s");
+    assert!(node >= n_mesh, "node {node} is a mesh node (< {n_mesh})");
+    assert!(speed > limit && limit == 0.05);
+    assert_eq!(step, sim.history().len() as u64, "stopped late");
+}

@@ -26,6 +26,38 @@ impl Simulation {
             || (n.role == NodeRole::Exit && self.state.phase == Phase::ExitTouching)
     }
 
+    /// The divergence guard on the sliding needle nodes, whose positions `p` and
+    /// velocities `v` are read back every step anyway: a node flung along the shaft (an
+    /// unstable friction or contact force acts on these light nodes first) stops the run
+    /// at once with [`SimError::Diverged`] or [`SimError::Runaway`], instead of at the
+    /// next `physics.check_every` step after rows of huge forces were recorded.
+    fn guard_sliding(&self, p: &[[f32; 4]], v: &[[f32; 4]]) -> Result<(), SimError> {
+        let step = self.stepper.steps();
+        let n0 = self.editor.n_mesh();
+        let limit = self.stepper.max_speed();
+        for (k, node) in self.state.nodes.iter().enumerate() {
+            if self.kinematic(node) {
+                continue;
+            }
+            let node = n0 + k;
+            for (x, field) in [(p[k], "position"), (v[k], "velocity")] {
+                if !x[..3].iter().all(|c| c.is_finite()) {
+                    return Err(SimError::Diverged { step, node, field });
+                }
+            }
+            let speed = xyz(v[k]).length();
+            if speed > limit {
+                return Err(SimError::Runaway {
+                    step,
+                    node,
+                    speed,
+                    limit,
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Puts sticking nodes on the needle and slipping nodes onto the shaft.
     pub(super) fn constrain(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimError> {
         let m = self.state.nodes.len();
@@ -58,6 +90,7 @@ impl Simulation {
         } else {
             p = vec![[0.0f32; 4]; m];
         }
+        self.guard_sliding(&p, &v)?;
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
         for k in 0..m {
             let node = self.state.nodes[k];
