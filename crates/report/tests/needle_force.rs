@@ -15,12 +15,17 @@ use std::path::Path;
 const INSERT_EXTRACT: &str = include_str!("../../../scenes/needle_insert_extract.toml");
 
 fn run(text: &str, steps: u64) -> Simulation {
-    let scene = Scene::from_toml_str(text, Path::new("../../scenes")).unwrap();
-    let prep = Simulation::prepare(&scene).unwrap();
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel).unwrap();
-    let mut sim = prep.start(Box::new(b)).unwrap();
+    let mut sim = start(text, Threading::Parallel);
     sim.step_n(steps).unwrap();
     sim
+}
+
+/// The scene `text` at step 0 on the CPU backend.
+fn start(text: &str, threading: Threading) -> Simulation {
+    let scene = Scene::from_toml_str(text, Path::new("../../scenes")).unwrap();
+    let prep = Simulation::prepare(&scene).unwrap();
+    let b = CpuBackend::new(prep.tissue.clone(), threading).unwrap();
+    prep.start(Box::new(b)).unwrap()
 }
 
 /// Slope, R^2, residual standard deviation and mean y of a least-squares line.
@@ -231,10 +236,7 @@ fn a_needle_that_loses_its_nodes_is_an_error() {
         "friction = { coefficient = 0.3 }\ncutting = 0.05",
         "friction = { model = \"paper\", static_threshold = 0.0, dynamic = 0.2, viscous = 1e4 }",
     );
-    let scene = Scene::from_toml_str(&text, Path::new("../../scenes")).unwrap();
-    let prep = Simulation::prepare(&scene).unwrap();
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
-    let mut sim = prep.start(Box::new(b)).unwrap();
+    let mut sim = start(&text, Threading::Single);
     let e = sim.step_n(2000).expect_err("nodes pushed ahead of the tip");
     match &e {
         SimulationError::NodesLost { .. } => {
@@ -261,9 +263,7 @@ fn the_sliding_needle_nodes_are_guarded_every_step() {
     );
     let scene = Scene::from_toml_str(&text, Path::new("../../scenes")).unwrap();
     assert_eq!(scene.physics.check_every, 1_000_000);
-    let prep = Simulation::prepare(&scene).unwrap();
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Single).unwrap();
-    let mut sim = prep.start(Box::new(b)).unwrap();
+    let mut sim = start(&text, Threading::Single);
     let n_mesh = sim.editor().n_mesh();
     let e = sim
         .step_n(5000)
