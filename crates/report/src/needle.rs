@@ -12,7 +12,9 @@
 use crate::error::ReportError;
 use crate::plot::{line_plot, Labels, Series};
 use needlesim_core::{CpuBackend, Scene, Threading};
-use needlesim_needle::{Keyframe, NeedleConfig, NeedleSample, PunctureState, Simulation};
+use needlesim_needle::{
+    Keyframe, NeedleConfig, NeedleSample, PunctureState, Simulation, SimulationError,
+};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -70,8 +72,7 @@ fn sim_of(text: &str, base: &Path) -> Result<Simulation, ReportError> {
 
 /// The scene run for its `run.steps`, or for `seconds` if fewer.
 fn sim_for(text: &str, base: &Path, seconds: Option<f64>) -> Result<Simulation, ReportError> {
-    let scene = Scene::from_toml_str(text, base)
-        .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
+    let scene = Scene::from_toml_str(text, base).map_err(SimulationError::from)?;
     let prep = Simulation::prepare(&scene)?;
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
         .map_err(needlesim::runner::RunError::from)?;
@@ -87,13 +88,11 @@ fn sim_for(text: &str, base: &Path, seconds: Option<f64>) -> Result<Simulation, 
 /// How long a scene's needle advances: the summed durations of the `move` keyframes its
 /// script opens with (0 when it opens with another action or has no needle).
 fn insertion_seconds(text: &str, base: &Path) -> Result<f64, ReportError> {
-    let scene = Scene::from_toml_str(text, base)
-        .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
+    let scene = Scene::from_toml_str(text, base).map_err(SimulationError::from)?;
     let Some(table) = scene.needle.as_ref() else {
         return Ok(0.0);
     };
-    let needle = NeedleConfig::from_table(table)
-        .map_err(|e| ReportError::Needle(needlesim_needle::SimulationError::Scene(e)))?;
+    let needle = NeedleConfig::from_table(table).map_err(SimulationError::from)?;
     Ok(needle
         .keyframe
         .iter()
