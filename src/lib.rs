@@ -33,6 +33,9 @@ pub use needlesim_core::{
     Threading, Tissue,
 };
 pub use needlesim_gpu as gpu;
+/// The haptic loop (feature `haptic`).
+#[cfg(feature = "haptic")]
+pub use needlesim_haptic as haptic;
 pub use needlesim_needle as needle;
 pub use runner::{make_backend, run_scene, RunError, RunOptions, RunSummary, CHECKPOINT_FILE};
 

@@ -62,6 +62,16 @@ pub trait Device: Send {
     fn render(&mut self, force: [f64; 3], tick: &Tick) -> Result<(), DeviceError>;
 }
 
+impl<D: Device + ?Sized> Device for Box<D> {
+    fn pose(&mut self, tick: &Tick) -> Result<DevicePose, DeviceError> {
+        (**self).pose(tick)
+    }
+
+    fn render(&mut self, force: [f64; 3], tick: &Tick) -> Result<(), DeviceError> {
+        (**self).render(force, tick)
+    }
+}
+
 /// What a [`DeviceHandle`] and its [`SharedDevice`] share.
 #[derive(Debug)]
 struct Slot {

@@ -14,7 +14,10 @@ use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use std::path::PathBuf;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+mod haptic;
 
 fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
@@ -127,7 +130,10 @@ fn backend_choice(name: Option<&str>) -> PyResult<Option<BackendChoice>> {
 /// `[needle]` table) on the CPU or the GPU.
 #[pyclass(module = "needlesim._needlesim", name = "Simulation")]
 struct PySimulation {
-    sim: Mutex<Simulation>,
+    /// Shared with a running `HapticLoop`.
+    sim: Arc<Mutex<Simulation>>,
+    /// Set while a `HapticLoop` steps the simulation.
+    busy: Arc<AtomicBool>,
     warnings: Vec<String>,
     masses: Vec<f64>,
     /// The scene as TOML (checkpoints carry it).
@@ -153,11 +159,22 @@ impl PySimulation {
         }
         .map_err(sim_error)?;
         Ok(PySimulation {
-            sim: Mutex::new(sim),
+            sim: Arc::new(Mutex::new(sim)),
+            busy: Arc::default(),
             warnings: warning.into_iter().collect(),
             masses,
             scene,
         })
+    }
+
+    /// An error while a haptic loop steps the simulation.
+    fn idle(&self) -> PyResult<()> {
+        if self.busy.load(Ordering::Acquire) {
+            return Err(runtime_error(
+                "a HapticLoop is stepping this simulation: stop it first",
+            ));
+        }
+        Ok(())
     }
 
     fn lock(&self) -> MutexGuard<'_, Simulation> {
@@ -279,6 +296,7 @@ impl PySimulation {
     /// done so far stay done).
     #[pyo3(signature = (n=1))]
     fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
+        self.idle()?;
         const CHUNK_SECONDS: f64 = 0.02;
         let sim = &self.sim;
         let mut done = 0u64;
@@ -369,6 +387,7 @@ impl PySimulation {
     /// Puts the needle at a pose for the next step (base point and direction base ->
     /// tip); the scene's keyframes, if any, stop playing.
     fn set_pose(&self, base: [f64; 3], direction: [f64; 3]) -> PyResult<()> {
+        self.idle()?;
         self.lock().set_pose(base, direction).map_err(sim_error)
     }
 
@@ -599,6 +618,8 @@ fn adapter() -> Option<String> {
 #[pymodule]
 fn _needlesim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySimulation>()?;
+    m.add_class::<haptic::PyHapticLoop>()?;
+    m.add_class::<haptic::PySineDevice>()?;
     m.add_function(wrap_pyfunction!(adapter, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -112,5 +112,56 @@ class Simulation:
     @property
     def warnings(self) -> List[str]: ...
 
+class SineDevice:
+    """A simulated device: a sinusoidal insertion from `start` along `direction`,
+    `amplitude` m deep, `frequency` strokes per second."""
+
+    def __init__(
+        self,
+        start: Tuple[float, float, float],
+        direction: Tuple[float, float, float],
+        amplitude: float,
+        frequency: float,
+        clock: Literal["scheduled", "wall"] = "scheduled",
+    ) -> None: ...
+    def position_at(self, t: float) -> npt.NDArray[np.float64]:
+        """The base position at time t (s)."""
+
+class HapticLoop:
+    """Steps a Simulation on its own thread at `rate` Hz with the needle tied to a device
+    by a virtual coupling; sends the device the coupling force."""
+
+    def __init__(
+        self,
+        sim: Simulation,
+        rate: float = 1000.0,
+        stiffness: Optional[float] = None,
+        damping: Optional[float] = None,
+        proxy_mass: Optional[float] = None,
+        proxy_damping: Optional[float] = None,
+        lowpass: Optional[float] = None,
+        max_force: float = 10.0,
+        max_ticks: Optional[int] = None,
+        device: Optional[SineDevice] = None,
+    ) -> None: ...
+    def set_device(self, position: Tuple[float, float, float], direction: Tuple[float, float, float]) -> None:
+        """Sets the device pose (needle base, direction) for the next tick."""
+    @property
+    def force(self) -> npt.NDArray[np.float64]:
+        """Force sent to the device in the last tick, N, (3,)."""
+    def latest(self) -> Optional[Dict[str, Any]]:
+        """The last tick's record."""
+    @property
+    def running(self) -> bool: ...
+    def stats(self) -> Dict[str, float]:
+        """ticks, overruns, saturated, target and p50/p99/max of period, work, latency (s)."""
+    def records(self) -> Dict[str, Any]:
+        """The tick records kept, as numpy arrays."""
+    def stop(self) -> Dict[str, float]:
+        """Stops the loop (zero force last) and returns its stats; RuntimeError if it had
+        stopped on an error."""
+    def join(self) -> Dict[str, float]:
+        """Waits for the loop to stop after max_ticks, then returns like stop."""
+
 def adapter() -> Optional[str]:
     """The GPU adapter wgpu finds, or None."""
