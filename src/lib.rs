@@ -37,6 +37,9 @@ pub use needlesim_gpu as gpu;
 #[cfg(feature = "haptic")]
 pub use needlesim_haptic as haptic;
 pub use needlesim_needle as needle;
+/// The renderer: screenshots (feature `render`) and the live window (feature `view`).
+#[cfg(feature = "render")]
+pub use needlesim_view as view;
 pub use runner::{make_backend, run_scene, RunError, RunOptions, RunSummary, CHECKPOINT_FILE};
 
 /// The default scene of `needlesim run` without a scene file: the paper's experiment, a

@@ -67,6 +67,34 @@ enum Command {
         #[arg(long, value_delimiter = ',', value_parser = parse_backend)]
         backends: Vec<BackendChoice>,
     },
+    /// Show a scene: a window that steps it in real time (keys: Space pause, N step,
+    /// R reset, +/- speed, arrows and PageUp/PageDown move the needle, drag to orbit,
+    /// wheel to zoom), or with --screenshot a PNG after --steps steps, without a window.
+    View {
+        /// Scene file (TOML); the shipped default when omitted.
+        scene: Option<PathBuf>,
+        /// Write a PNG here after the steps instead of opening a window.
+        #[arg(long, value_name = "PNG")]
+        screenshot: Option<PathBuf>,
+        /// Steps before the screenshot [default: the scene's run.steps].
+        #[arg(long, requires = "screenshot")]
+        steps: Option<u64>,
+        /// Image or window width in pixels [default: 800 for a screenshot, 1024 for a
+        /// window].
+        #[arg(long)]
+        width: Option<u32>,
+        /// Image or window height in pixels [default: 600 for a screenshot, 768 for a
+        /// window].
+        #[arg(long)]
+        height: Option<u32>,
+        /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
+        #[arg(long, value_parser = parse_backend)]
+        backend: Option<BackendChoice>,
+        /// CPU threads: 1 for the single-threaded backend, 0 for all threads (overrides
+        /// --backend).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// Print node count, neighbour statistics and the bytes of every allocated array.
     Info {
         /// Scene file (TOML); the shipped default when omitted.
@@ -226,6 +254,15 @@ fn run(cli: Cli) -> Result<()> {
                 summary.elapsed.as_secs_f64()
             )?;
         }
+        Command::View {
+            scene,
+            screenshot,
+            steps,
+            width,
+            height,
+            backend,
+            threads,
+        } => view(scene, screenshot, steps, width, height, backend, threads)?,
         Command::Adapter => {
             let ctx = GpuContext::new(0)?;
             say!("{}", ctx.describe())?;
@@ -356,6 +393,67 @@ fn run(cli: Cli) -> Result<()> {
                 "output      {} ({} files: frames.csv, surface.pvd for ParaView{needle_files})",
                 out.display(),
                 summary.files.len() + plots.len()
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// `needlesim view`: a screenshot after some steps, or the interactive window.
+fn view(
+    scene_path: Option<PathBuf>,
+    screenshot: Option<PathBuf>,
+    steps: Option<u64>,
+    width: Option<u32>,
+    height: Option<u32>,
+    backend: Option<BackendChoice>,
+    threads: Option<usize>,
+) -> Result<()> {
+    use needlesim::needle::Simulation;
+    let (w, h) = match screenshot {
+        Some(_) => (width.unwrap_or(800), height.unwrap_or(600)),
+        None => (width.unwrap_or(1024), height.unwrap_or(768)),
+    };
+    needlesim_view::render::check_size(w, h, needlesim_view::MAX_SIZE)?;
+    let (scene, stem) = load(&scene_path)?;
+    let default_steps = scene.run.steps;
+    let build = move || -> Result<Simulation> {
+        let prep = Simulation::prepare(&scene)?;
+        let (b, warning) = needlesim::make_backend(&scene, prep.tissue.clone(), backend, threads)?;
+        if let Some(w) = warning {
+            eprintln!("warning: {w}");
+        }
+        Ok(prep.start(b)?)
+    };
+    match screenshot {
+        Some(path) => {
+            // The renderer first: no adapter is found out before the steps, not after.
+            let mut renderer = needlesim_view::Renderer::headless()?;
+            let mut sim = build()?;
+            let n = steps.unwrap_or(default_steps);
+            sim.step_n(n)
+                .with_context(|| format!("stepping scene `{stem}` ({n} steps)"))?;
+            let frame = needlesim_view::Frame::gather(&mut sim)?;
+            let camera = needlesim_view::Camera::frame(&frame);
+            renderer
+                .render_to_image(&frame, &camera, w, h)?
+                .save_png(&path)?;
+            say!(
+                "screenshot  {} ({w}x{h}, scene `{stem}` after {n} steps, t = {:.3} s)",
+                path.display(),
+                sim.time()
+            )?;
+        }
+        None => {
+            let options = needlesim_view::window::WindowOptions {
+                width: w,
+                height: h,
+                title: format!("needlesim: {stem}"),
+                ..Default::default()
+            };
+            needlesim_view::window::run_window(
+                Box::new(move || build().map_err(Into::into)),
+                options,
             )?;
         }
     }

@@ -176,3 +176,59 @@ fn backend_option_selects_the_gpu_or_falls_back() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("unknown backend `banana`"));
 }
+
+/// `needlesim view --screenshot` renders offscreen (lavapipe under scripts/test) and
+/// writes a PNG of the asked size; a zero size and a missing scene are errors with a
+/// message, not a panic and not an empty file.
+#[test]
+fn view_writes_a_screenshot_and_rejects_bad_sizes() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("shot.png");
+    let o = needlesim()
+        .args([
+            "view",
+            "--steps",
+            "20",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--screenshot",
+        ])
+        .arg(&png)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    let gpu = std::env::var("NEEDLESIM_REQUIRE_GPU").is_ok();
+    if o.status.success() {
+        let bytes = std::fs::read(&png).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        // IHDR holds the width and height, big-endian, at bytes 16..24.
+        assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 64);
+        assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 48);
+    } else {
+        assert!(!gpu, "{stderr}");
+        assert!(stderr.contains("no GPU adapter"), "{stderr}");
+    }
+    let o = needlesim()
+        .args(["view", "--width", "0", "--screenshot"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("out of range"),
+        "{stderr}"
+    );
+    let o = needlesim()
+        .args(["view", "nosuch.toml", "--screenshot"])
+        .arg(dir.path().join("none.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("nosuch.toml"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("none.png").exists());
+}

@@ -384,6 +384,23 @@ impl PySimulation {
         Ok((rows(py, verts, 3)?, rows(py, faces, 3)?))
     }
 
+    /// Renders the simulation as it is now (the tissue surface lit, the needle, its
+    /// nodes, the force-against-depth inset) to a PNG at `path`, offscreen on a GPU or
+    /// Mesa's software Vulkan driver (RuntimeError without one; ValueError for a size
+    /// outside 1..8192).
+    #[pyo3(signature = (path, width=800, height=600))]
+    fn screenshot(&self, py: Python<'_>, path: PathBuf, width: u32, height: u32) -> PyResult<()> {
+        let sim = &self.sim;
+        py.detach(|| {
+            let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());
+            needlesim::view::screenshot(&mut s, &path, width, height)
+        })
+        .map_err(|e| match e {
+            needlesim::view::ViewError::BadSize { .. } => value_error(e),
+            _ => runtime_error(e),
+        })
+    }
+
     /// Puts the needle at a pose for the next step (base point and direction base ->
     /// tip); the scene's keyframes, if any, stop playing.
     fn set_pose(&self, base: [f64; 3], direction: [f64; 3]) -> PyResult<()> {

@@ -1,5 +1,6 @@
 """The haptic loop from Python: a simulated device through the paper scene's surface."""
 
+import os
 import time
 from pathlib import Path
 
@@ -58,3 +59,19 @@ def test_the_shared_device_and_bad_settings():
     assert sim.base[0] == pytest.approx(base[0] - 0.005, abs=1e-5)
     with pytest.raises(RuntimeError, match="stopped"):
         loop.stop()
+
+
+def test_a_screenshot_mid_insertion(tmp_path):
+    if needlesim.adapter() is None and not os.environ.get("NEEDLESIM_REQUIRE_GPU"):
+        pytest.skip("no Vulkan adapter")
+    sim = needlesim.Simulation.from_scene(PAPER, threads=1)
+    sim.step(1200)
+    assert sim.puncture_state == "inside"
+    png = tmp_path / "mid.png"
+    sim.screenshot(png, width=160, height=120)
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    # IHDR: width and height, big-endian, at bytes 16..24.
+    assert int.from_bytes(data[16:20], "big") == 160 and int.from_bytes(data[20:24], "big") == 120
+    with pytest.raises(ValueError, match="out of range"):
+        sim.screenshot(png, width=0, height=10)

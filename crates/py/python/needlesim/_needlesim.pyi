@@ -64,6 +64,8 @@ class Simulation:
         """(triangles, 3) surface triangles as indices into positions."""
     def surface(self) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
         """The surface as (vertices (m, 3), faces (t, 3) into vertices)."""
+    def screenshot(self, path: Union[str, PathLike[str]], width: int = 800, height: int = 600) -> None:
+        """Renders the simulation now to a PNG (offscreen; RuntimeError without a Vulkan driver)."""
     def set_pose(self, base: Tuple[float, float, float], direction: Tuple[float, float, float]) -> None:
         """Puts the needle at a pose for the next step; keyframes stop playing."""
     @property
