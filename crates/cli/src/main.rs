@@ -417,9 +417,11 @@ fn view(
     needlesim_view::render::check_size(w, h, needlesim_view::MAX_SIZE)?;
     let (scene, stem) = load(&scene_path)?;
     let default_steps = scene.run.steps;
+    let shared = scene.clone();
     let build = move || -> Result<Simulation> {
-        let prep = Simulation::prepare(&scene)?;
-        let (b, warning) = needlesim::make_backend(&scene, prep.tissue.clone(), backend, threads)?;
+        let scene = &shared;
+        let prep = Simulation::prepare(scene)?;
+        let (b, warning) = needlesim::make_backend(scene, prep.tissue.clone(), backend, threads)?;
         if let Some(w) = warning {
             eprintln!("warning: {w}");
         }
@@ -427,9 +429,21 @@ fn view(
     };
     match screenshot {
         Some(path) => {
-            // The renderer first: no adapter is found out before the steps, not after.
-            let mut renderer = needlesim_view::Renderer::headless()?;
-            let mut sim = build()?;
+            // The renderer first: no adapter is found out before the steps, not after. On
+            // the GPU backend the renderer shares the simulation's device.
+            let on_gpu =
+                threads.is_none() && backend.unwrap_or(scene.backend) == BackendChoice::Gpu;
+            let (mut renderer, mut sim) = if on_gpu {
+                let prep = Simulation::prepare(&scene)?;
+                let ctx = GpuContext::new(needlesim::gpu::largest_buffer(&prep.tissue))?;
+                let b = needlesim::gpu::GpuBackend::with_context(ctx.clone(), &prep.tissue)?;
+                (
+                    needlesim_view::Renderer::from_gpu(&ctx),
+                    prep.start(Box::new(b))?,
+                )
+            } else {
+                (needlesim_view::Renderer::headless()?, build()?)
+            };
             let n = steps.unwrap_or(default_steps);
             sim.step_n(n)
                 .with_context(|| format!("stepping scene `{stem}` ({n} steps)"))?;

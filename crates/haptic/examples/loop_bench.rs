@@ -5,6 +5,7 @@
 //! ```text
 //! cargo run --release -p needlesim-haptic --example loop_bench -- \
 //!     [--nodes 648,11000] [--backends cpu,cpu-parallel,gpu] [--seconds 4] [--rate 1000]
+//!     [--spin-us 1000]
 //! ```
 //!
 //! Prints one markdown row per case. The tick period's p99 within 1.5 times the target
@@ -31,6 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let backends = arg(&args, "--backends", "cpu,cpu-parallel,gpu");
     let seconds: f64 = arg(&args, "--seconds", "4").parse()?;
     let rate: f64 = arg(&args, "--rate", "1000").parse()?;
+    let spin_us: u64 = arg(&args, "--spin-us", "1000").parse()?;
     println!("| nodes | backend | ticks | overruns | period p50 / p99 / max (ms) | work p50 / p99 (ms) | latency p50 / p99 (ms) | sim time / wall |");
     println!("|---|---|---|---|---|---|---|---|");
     for n in nodes.split(',') {
@@ -69,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let config = HapticConfig {
                 rate,
                 max_ticks: Some(ticks),
+                spin: std::time::Duration::from_micros(spin_us),
                 ..HapticConfig::default()
             };
             let t0 = std::time::Instant::now();

@@ -3,7 +3,7 @@
 //! under the coupling and the tissue force ([`crate::coupling`]), and sends the coupling
 //! force to the device (low-passed and saturated if asked).
 //!
-//! Timing: each tick starts at its deadline (sleep, then a short spin for the last
+//! Timing: each tick starts at its deadline (sleep, then a spin for the last
 //! [`HapticConfig::spin`]); a tick whose work runs past the next deadline is an overrun,
 //! and the next tick starts at once, without bursts to catch up: the simulated time then
 //! falls behind wall time.
@@ -34,8 +34,11 @@ pub struct HapticConfig {
     /// peak force). Larger forces are scaled down to it and counted
     /// ([`HapticStats::saturated`]).
     pub max_force: f64,
-    /// Time before each deadline spent spinning instead of sleeping (default 200 us: the
-    /// sleep's wake-up jitter on Linux is tens of microseconds).
+    /// Time before each deadline spent spinning instead of sleeping (default 1 ms: at
+    /// 1 kHz the loop's thread busy-waits and keeps a core). A sleeping thread wakes up
+    /// late on a loaded machine: on this project's 2-core test machine the 648-node
+    /// loop's p99 period was 2.0-2.8 ms with 200 us of spin and 1.06-1.27 ms with 1 ms
+    /// (`examples/loop_bench.rs`). Lower it to give the core back.
     pub spin: Duration,
     /// Tick records kept for [`HapticLoop::records`] and the percentiles (default 65536,
     /// about a minute at 1 kHz; a ring, oldest dropped).
@@ -52,7 +55,7 @@ impl Default for HapticConfig {
             coupling: VirtualCoupling::default(),
             lowpass: None,
             max_force: 10.0,
-            spin: Duration::from_micros(200),
+            spin: Duration::from_millis(1),
             keep: 1 << 16,
             max_ticks: None,
         }

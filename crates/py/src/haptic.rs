@@ -164,7 +164,6 @@ impl PyHapticLoop {
             lowpass,
             max_force,
             max_ticks,
-            spin: Duration::from_micros(200),
             ..HapticConfig::default()
         };
         if sim.busy.swap(true, Ordering::AcqRel) {
