@@ -60,13 +60,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let sim = prep.start(backend)?;
             let mesh = sim.editor().n_mesh();
             let needle = sim.needle().ok_or("no needle")?;
-            let device = SineDevice {
-                start: needle.base(),
-                direction: needle.direction(),
-                amplitude: 0.04,
-                frequency: 0.25,
-                clock: Clock::Wall,
-            };
+            let device = SineDevice::along(needle, 0.04, 0.25, Clock::Wall);
             let ticks = (seconds * rate) as u64;
             let config = HapticConfig {
                 rate,

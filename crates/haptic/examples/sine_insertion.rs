@@ -31,13 +31,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (backend, _) = make_backend(&scene, prep.tissue.clone(), Some(BackendChoice::Cpu), None)?;
     let sim = prep.start(backend)?;
     let needle = sim.needle().ok_or("the scene has no needle")?;
-    let device = SineDevice {
-        start: needle.base(),
-        direction: needle.direction(),
-        amplitude: 0.04,
-        frequency: 0.25,
-        clock: Clock::Wall,
-    };
+    let device = SineDevice::along(needle, 0.04, 0.25, Clock::Wall);
     let config = HapticConfig {
         max_ticks: Some(4000),
         ..HapticConfig::default()

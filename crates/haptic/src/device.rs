@@ -10,6 +10,7 @@
 //! from it; the loop then uses the matching [`SharedDevice`]. Convert units and frames in
 //! the implementation: the loop works in metres and newtons, in the scene's frame.
 
+use needlesim_needle::Needle;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -166,6 +167,17 @@ pub struct SineDevice {
 }
 
 impl SineDevice {
+    /// A sinusoidal insertion of `needle` from where it is, along itself.
+    pub fn along(needle: &Needle, amplitude: f64, frequency: f64, clock: Clock) -> SineDevice {
+        SineDevice {
+            start: needle.base(),
+            direction: needle.direction(),
+            amplitude,
+            frequency,
+            clock,
+        }
+    }
+
     /// The base position at time `t`, s.
     pub fn position_at(&self, t: f64) -> [f64; 3] {
         let s =

@@ -28,14 +28,12 @@ fn simulation(text: &str) -> Simulation {
 /// A sinusoidal insertion whose clock is the tick's schedule: the same poses whatever the
 /// loop's timing on a loaded machine.
 fn sine(sim: &Simulation, amplitude: f64, frequency: f64) -> SineDevice {
-    let n = sim.needle().expect("needle");
-    SineDevice {
-        start: n.base(),
-        direction: n.direction(),
+    SineDevice::along(
+        sim.needle().expect("needle"),
         amplitude,
         frequency,
-        clock: Clock::Scheduled,
-    }
+        Clock::Scheduled,
+    )
 }
 
 fn largest_step(records: &[TickRecord], f: impl Fn(&TickRecord) -> [f64; 3]) -> (f64, u64) {

@@ -12,7 +12,9 @@
 //! advance/withdraw along the needle, Left/Right turn it about the vertical (+z) through
 //! the entry point (the base before contact), PageUp/PageDown tilt it up/down about the
 //! same point. The first manual move ends the scene's script ([`Simulation::set_pose`]).
-//! Mouse: drag with the left button to orbit, wheel to zoom.
+//! Mouse: drag with the left button to orbit, wheel to zoom; drag with the right button to
+//! move the needle ([`WindowOptions::mouse_advance`] m per pixel up, advancing;
+//! [`WindowOptions::mouse_turn`] degrees per pixel sideways, turning about the same pivot).
 
 use crate::camera::Camera;
 use crate::frame::Frame;
@@ -44,6 +46,11 @@ pub struct WindowOptions {
     pub advance_speed: f64,
     /// Turn and tilt rate of the arrow and page keys, degrees per simulated second.
     pub turn_rate: f64,
+    /// Needle advance per pixel of right-button drag upwards, m (applied at up to twice
+    /// `advance_speed`; likewise the turn at up to twice `turn_rate`).
+    pub mouse_advance: f64,
+    /// Needle turn per pixel of right-button drag sideways, degrees.
+    pub mouse_turn: f64,
     /// The window title's prefix (the scene name, say).
     pub title: String,
 }
@@ -57,6 +64,8 @@ impl Default for WindowOptions {
             max_steps_per_frame: 200,
             advance_speed: 0.05,
             turn_rate: 20.0,
+            mouse_advance: 2e-4,
+            mouse_turn: 0.2,
             title: "needlesim".into(),
         }
     }
@@ -86,6 +95,8 @@ pub fn run_window(mut build: Build, options: WindowOptions) -> Result<(), ViewEr
         single_step: false,
         keys: HashSet::new(),
         dragging: false,
+        steering: false,
+        mouse_motion: [0.0; 3],
         cursor: None,
         last: Instant::now(),
         backlog: 0.0,
@@ -216,6 +227,10 @@ struct App {
     single_step: bool,
     keys: HashSet<NamedKey>,
     dragging: bool,
+    /// Right button held: the mouse moves the needle.
+    steering: bool,
+    /// Needle motion from the mouse not yet applied (advance m, turn rad, tilt rad).
+    mouse_motion: [f64; 3],
     cursor: Option<(f64, f64)>,
     last: Instant,
     /// Simulated time owed to real time, s.
@@ -268,10 +283,25 @@ impl App {
     /// One simulation step, with the held needle keys applied first.
     fn step(&mut self) -> Result<(), ViewError> {
         let dt = self.sim.dt();
-        if let (Some(m), Some(n)) = (
-            manual_motion(&self.keys, &self.options, dt),
-            self.sim.needle(),
-        ) {
+        let keys = manual_motion(&self.keys, &self.options, dt);
+        // The mouse's motion is applied at most twice the keys' speed a step (the rest
+        // later): a fast drag must not move the tip several node spacings in one step.
+        let o = &self.options;
+        let most = [
+            2.0 * o.advance_speed * dt,
+            2.0 * o.turn_rate.to_radians() * dt,
+            0.0,
+        ];
+        let mouse: [f64; 3] =
+            std::array::from_fn(|i| self.mouse_motion[i].clamp(-most[i], most[i]));
+        for (left, m) in self.mouse_motion.iter_mut().zip(mouse) {
+            *left -= m;
+        }
+        let motion = match keys {
+            Some(k) => Some(std::array::from_fn(|i| k[i] + mouse[i])),
+            None => (mouse != [0.0; 3]).then_some(mouse),
+        };
+        if let (Some(m), Some(n)) = (motion, self.sim.needle()) {
             let pivot = match (self.sim.state(), self.sim.entry_point()) {
                 (PunctureState::Outside, _) | (_, None) => n.base(),
                 (_, Some(e)) => e,
@@ -416,7 +446,17 @@ impl ApplicationHandler for App {
                 button: MouseButton::Left,
                 ..
             } => self.dragging = state == ElementState::Pressed,
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Right,
+                ..
+            } => self.steering = state == ElementState::Pressed,
             WindowEvent::CursorMoved { position, .. } => {
+                if let (true, Some((x, y))) = (self.steering, self.cursor) {
+                    let o = &self.options;
+                    self.mouse_motion[0] -= (position.y - y) * o.mouse_advance;
+                    self.mouse_motion[1] -= (position.x - x) * o.mouse_turn.to_radians();
+                }
                 if let (true, Some((x, y)), Some(c)) =
                     (self.dragging, self.cursor, self.camera.as_mut())
                 {
