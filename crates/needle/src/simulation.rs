@@ -194,6 +194,11 @@ impl Simulation {
         self.contact.layers.get(region as usize).map(|l| l.grip)
     }
 
+    /// The region of every mesh node (an index into [`Simulation::region_names`]).
+    pub fn node_regions(&self) -> &[u16] {
+        &self.node_region
+    }
+
     /// Names of the tissue regions, region 0 (`"tissue"`, nodes in no `[[region]]`) first.
     pub fn region_names(&self) -> &[String] {
         &self.region_names

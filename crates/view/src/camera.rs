@@ -99,6 +99,7 @@ mod tests {
     #[test]
     fn framing_puts_the_target_at_the_shift_and_the_box_in_view() {
         let frame = Frame {
+            regions: Vec::new(),
             positions: vec![[0.0, 0.0, 0.0], [0.2, 0.2, 0.2], [0.2, 0.0, 0.0]],
             triangles: vec![[0, 1, 2]],
             needle: Some(([-0.2, 0.1, 0.1], [0.0, 0.1, 0.1])),

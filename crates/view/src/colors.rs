@@ -36,6 +36,25 @@ pub const PLOT_CURVE: [u8; 3] = [31, 119, 180];
 /// The latest sample on the curve: red.
 pub const PLOT_CURRENT: [u8; 3] = [214, 39, 40];
 
+/// Tissue colours of the regions after region 0 ([`TISSUE`]), in the order of the scene's
+/// `[[region]]` tables, repeating: beige, yellow, dark red, brown, lilac, teal.
+pub const REGIONS: [[u8; 3]; 6] = [
+    [232, 196, 160],
+    [238, 212, 110],
+    [170, 52, 62],
+    [150, 95, 70],
+    [180, 140, 200],
+    [90, 170, 160],
+];
+
+/// The tissue colour of region `r`: [`TISSUE`] for region 0 (nodes in no `[[region]]`).
+pub fn region(r: u16) -> [u8; 3] {
+    match r {
+        0 => TISSUE,
+        r => REGIONS[(r as usize - 1) % REGIONS.len()],
+    }
+}
+
 /// An 8-bit colour as linear 0..1 floats with the given alpha.
 pub fn rgba(c: [u8; 3], alpha: f32) -> [f32; 4] {
     [
@@ -44,4 +63,17 @@ pub fn rgba(c: [u8; 3], alpha: f32) -> [f32; 4] {
         c[2] as f32 / 255.0,
         alpha,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regions_have_their_own_colours() {
+        assert_eq!(region(0), TISSUE);
+        let first: Vec<[u8; 3]> = (1..=6).map(region).collect();
+        assert!(first.iter().all(|c| *c != TISSUE));
+        assert_eq!(region(7), region(1));
+    }
 }

@@ -25,6 +25,9 @@ pub struct Frame {
     pub positions: Vec<[f32; 3]>,
     /// Surface triangles, as indices into `positions` (out-of-range ones are skipped).
     pub triangles: Vec<[u32; 3]>,
+    /// The tissue region of each position (colours of [`crate::colors::region`]); region 0
+    /// for the positions past its end (empty: one tissue).
+    pub regions: Vec<u16>,
     /// The needle as (base, tip), m, if the scene has one.
     pub needle: Option<([f32; 3], [f32; 3])>,
     /// The needle nodes.
@@ -57,6 +60,11 @@ impl Frame {
                 })
             })
             .collect();
+        // Mesh nodes, then the needle nodes (a split surface triangle names the Surface
+        // node), each with its region.
+        let mut regions = sim.node_regions().to_vec();
+        regions.resize(sim.editor().n_mesh(), 0);
+        regions.extend(sim.needle_nodes().iter().map(|node| node.region));
         let needle = sim.needle().map(|nd| (f32x3(nd.base()), f32x3(nd.tip())));
         let history = sim.history();
         let stride = history.len().div_ceil(MAX_PLOT_POINTS).max(1);
@@ -79,6 +87,7 @@ impl Frame {
             }
         }
         Ok(Frame {
+            regions,
             positions,
             triangles: sim.triangles().to_vec(),
             needle,

@@ -42,15 +42,18 @@ pub fn tissue(frame: &Frame) -> (Vec<Vertex>, Vec<u32>) {
         }
         indices.extend_from_slice(t);
     }
-    let color = rgba(colors::TISSUE, colors::TISSUE_ALPHA);
     let vertices = frame
         .positions
         .iter()
         .zip(&normals)
-        .map(|(&p, nrm)| Vertex {
+        .enumerate()
+        .map(|(i, (&p, nrm))| Vertex {
             position: p,
             extra: nrm.normalize_or_zero().into(),
-            color,
+            color: rgba(
+                colors::region(frame.regions.get(i).copied().unwrap_or(0)),
+                colors::TISSUE_ALPHA,
+            ),
         })
         .collect();
     (vertices, indices)
@@ -328,6 +331,7 @@ mod tests {
         // Two triangles sharing node 0: a large one in the xy plane (normal +z) and a
         // small one in the xz plane (normal -y).
         let frame = Frame {
+            regions: Vec::new(),
             positions: vec![
                 [0.0, 0.0, 0.0],
                 [2.0, 0.0, 0.0],

@@ -267,6 +267,7 @@ fn renders_on_the_gpu_backends_device() {
     let mut renderer = Renderer::from_gpu(&ctx);
     assert!(renderer.max_size() >= 2048);
     let frame = Frame {
+        regions: Vec::new(),
         positions: vec![[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]],
         triangles: vec![[0, 1, 2]],
         needle: Some(([-0.1, 0.03, 0.0], [0.02, 0.03, 0.0])),
