@@ -68,8 +68,9 @@ enum Command {
         backends: Vec<BackendChoice>,
     },
     /// Show a scene: a window that steps it in real time (keys: Space pause, N step,
-    /// R reset, +/- speed, arrows and PageUp/PageDown move the needle, drag to orbit,
-    /// wheel to zoom), or with --screenshot a PNG after --steps steps, without a window.
+    /// R reset, +/- speed, arrows and PageUp/PageDown move the needle; right-drag moves
+    /// the needle, left-drag orbits, wheel zooms), or with --screenshot a PNG after
+    /// --steps steps, without a window.
     View {
         /// Scene file (TOML); the shipped default when omitted.
         scene: Option<PathBuf>,
