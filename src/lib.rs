@@ -24,6 +24,7 @@ pub mod info;
 pub mod needle_output;
 pub mod output;
 pub mod runner;
+pub mod sweep;
 
 pub use frame::FrameMetrics;
 pub use info::SceneInfo;

@@ -96,6 +96,26 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
     },
+    /// Run a scene once per combination of the --vary values, on local cores (one CPU
+    /// thread per run), and write every run's needle force history to one CSV; a failing
+    /// variant gets a row with its error and the others complete.
+    Sweep {
+        /// Scene file (TOML); the shipped default when omitted.
+        scene: Option<PathBuf>,
+        /// KEY=V1,V2,...: a dotted scene key (`material.stiffness`,
+        /// `needle.keyframe.0.speed`) and its values (TOML literals); repeat for a grid.
+        #[arg(long, required = true, value_name = "KEY=V1,V2,...")]
+        vary: Vec<String>,
+        /// Steps per run [default: the scene's run.steps].
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Runs at once [default: the machine's cores].
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// The CSV to write [default: out/<scene name>_sweep.csv].
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Print node count, neighbour statistics and the bytes of every allocated array.
     Info {
         /// Scene file (TOML); the shipped default when omitted.
@@ -264,6 +284,13 @@ fn run(cli: Cli) -> Result<()> {
             backend,
             threads,
         } => view(scene, screenshot, steps, width, height, backend, threads)?,
+        Command::Sweep {
+            scene,
+            vary,
+            steps,
+            jobs,
+            out,
+        } => sweep(scene, &vary, steps, jobs, out)?,
         Command::Adapter => {
             let ctx = GpuContext::new(0)?;
             say!("{}", ctx.describe())?;
@@ -472,5 +499,84 @@ fn view(
             )?;
         }
     }
+    Ok(())
+}
+
+/// `needlesim sweep`: the grid of the --vary values, run on local cores, to one CSV.
+fn sweep(
+    scene_path: Option<PathBuf>,
+    vary: &[String],
+    steps: Option<u64>,
+    jobs: Option<usize>,
+    out: Option<PathBuf>,
+) -> Result<()> {
+    use needlesim::sweep;
+    use std::io::Write;
+    let (scene, stem, text) = load_with_text(&scene_path)?;
+    let vary = vary
+        .iter()
+        .map(|v| sweep::parse_vary(v))
+        .collect::<Result<Vec<_>, _>>()?;
+    let variants = sweep::grid(&vary);
+    // Every override must apply to the scene before anything runs (a typo fails at once).
+    for v in &variants {
+        sweep::apply(&text.toml, v)?;
+    }
+    let jobs = jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    let out = out.unwrap_or_else(|| PathBuf::from(format!("out/{stem}_sweep.csv")));
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let t0 = std::time::Instant::now();
+    let results = sweep::sweep(&text.toml, &scene.base_dir, &variants, steps, jobs);
+    let wall = t0.elapsed().as_secs_f64();
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(&out).with_context(|| format!("creating {}", out.display()))?,
+    );
+    let keys: Vec<&str> = vary.iter().map(|(k, _)| k.as_str()).collect();
+    writeln!(
+        f,
+        "variant,{},step,time_s,depth_m,axial_force_n,lateral_force_n,state,error",
+        keys.join(",")
+    )?;
+    let mut failed = 0;
+    for (i, (v, r)) in variants.iter().zip(&results).enumerate() {
+        let values: Vec<String> = v
+            .iter()
+            .map(|(_, x)| x.to_string().replace(',', ";"))
+            .collect();
+        let values = values.join(",");
+        match r {
+            Ok(run) => {
+                for s in &run.samples {
+                    writeln!(
+                        f,
+                        "{i},{values},{},{},{},{},{},{},",
+                        s.step,
+                        s.time,
+                        run.depth(s),
+                        s.force.axial,
+                        s.force.lateral,
+                        format!("{:?}", s.state).to_lowercase()
+                    )?;
+                }
+            }
+            Err(e) => {
+                failed += 1;
+                let msg = e.to_string().replace(['\n', '"'], " ");
+                writeln!(f, "{i},{values},,,,,,,\"{msg}\"")?;
+                eprintln!("variant {i} ({values}) failed: {msg}");
+            }
+        }
+    }
+    f.flush()?;
+    say!(
+        "sweep       {} variants ({failed} failed) on {jobs} threads in {wall:.1} s ({:.1} variants/min)\nwritten     {}",
+        variants.len(),
+        variants.len() as f64 / wall * 60.0,
+        out.display()
+    )?;
     Ok(())
 }

@@ -232,3 +232,75 @@ fn view_writes_a_screenshot_and_rejects_bad_sizes() {
     );
     assert!(!dir.path().join("none.png").exists());
 }
+
+/// `needlesim sweep` runs the grid of the --vary values on two threads: every variant's
+/// needle force history is bitwise the one of the same scene run alone (one CPU thread,
+/// in this process), and a failing variant gets its error while the others complete.
+#[test]
+fn sweep_matches_runs_alone_and_reports_failures() {
+    use needlesim::core::scene::BackendChoice;
+    use needlesim::needle::Simulation;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let scene = root.join("scenes/needle_insert_extract.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("sweep.csv");
+    let o = needlesim()
+        .arg("sweep")
+        .arg(&scene)
+        .args([
+            "--vary",
+            "needle.friction.coefficient=0.1,0.5,-2",
+            "--steps",
+            "2000",
+        ])
+        .args(["--jobs", "2", "--out"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    assert!(stderr.contains("variant 2 (-2) failed"), "{stderr}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    let failed: Vec<_> = rows.iter().filter(|r| r[0] == "2").collect();
+    assert_eq!(failed.len(), 1);
+    assert!(failed[0][8].contains("coefficient"), "{:?}", failed[0]);
+    let base = std::fs::read_to_string(&scene).unwrap();
+    for (variant, mu) in [("0", 0.1), ("1", 0.5)] {
+        let alone = base.replace(
+            "friction = { coefficient = 0.3 }",
+            &format!("friction = {{ coefficient = {mu} }}"),
+        );
+        assert_ne!(alone, base);
+        let s = needlesim::Scene::from_toml_str(&alone, &root.join("scenes")).unwrap();
+        let prep = Simulation::prepare(&s).unwrap();
+        let (b, _) =
+            needlesim::make_backend(&s, prep.tissue.clone(), Some(BackendChoice::Cpu), None)
+                .unwrap();
+        let mut sim = prep.start(b).unwrap();
+        sim.step_n(2000).unwrap();
+        let axial: Vec<f64> = sim.history().iter().map(|h| h.force.axial).collect();
+        let swept: Vec<f64> = rows
+            .iter()
+            .filter(|r| r[0] == variant)
+            .map(|r| r[5].parse().unwrap())
+            .collect();
+        assert_eq!(swept.len(), 2000);
+        // Rust prints an f64 with the fewest digits that read back to the same bits.
+        assert!(
+            axial
+                .iter()
+                .zip(&swept)
+                .all(|(a, b)| a.to_bits() == b.to_bits()),
+            "variant {variant} differs from its run alone"
+        );
+        assert!(
+            axial.iter().any(|&f| f != 0.0),
+            "the needle touched the tissue"
+        );
+    }
+}

@@ -1,0 +1,257 @@
+//! Parameter sweeps on local cores: a scene run once per variant, a variant being a set of
+//! overrides of the scene's keys (dotted paths into its TOML, `material.stiffness`,
+//! `needle.keyframe.0.speed`), each run on one CPU thread so that `jobs` runs use `jobs`
+//! cores once. A variant that fails keeps its typed error; the others complete.
+
+use crate::make_backend;
+use needlesim_core::scene::BackendChoice;
+use needlesim_core::Scene;
+use needlesim_needle::{NeedleSample, Simulation};
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// Why a sweep could not start, or a variant failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// A `--vary` argument is not `key=v1,v2,...`.
+    #[error("`{0}` is not KEY=V1,V2,... (a dotted scene key and comma-separated values)")]
+    Vary(String),
+    /// A dotted key does not name a value of the scene.
+    #[error("scene key `{key}`: {problem}")]
+    Key {
+        /// The dotted key.
+        key: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// The scene text is not TOML.
+    #[error("the scene is not TOML: {0}")]
+    Toml(String),
+    /// The variant's scene or run failed.
+    #[error("{0}")]
+    Run(String),
+}
+
+/// One override: a dotted key and its value.
+pub type Override = (String, toml::Value);
+
+/// A TOML value from a command line word: a TOML literal (`1e4`, `true`, `[1, 2]`,
+/// `"text"`), else the word as a string.
+pub fn parse_value(word: &str) -> toml::Value {
+    toml::from_str::<toml::Table>(&format!("v = {word}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(word.to_string()))
+}
+
+/// `key=v1,v2,...` as the key and its values.
+pub fn parse_vary(spec: &str) -> Result<(String, Vec<toml::Value>), SweepError> {
+    let (key, values) = spec
+        .split_once('=')
+        .ok_or_else(|| SweepError::Vary(spec.into()))?;
+    let key = key.trim();
+    if key.is_empty() || values.trim().is_empty() {
+        return Err(SweepError::Vary(spec.into()));
+    }
+    Ok((
+        key.to_string(),
+        values.split(',').map(|v| parse_value(v.trim())).collect(),
+    ))
+}
+
+/// Every combination of the keys' values (the first key varies slowest).
+pub fn grid(vary: &[(String, Vec<toml::Value>)]) -> Vec<Vec<Override>> {
+    vary.iter().fold(vec![Vec::new()], |acc, (key, values)| {
+        acc.iter()
+            .flat_map(|prefix| {
+                values.iter().map(move |v| {
+                    let mut o = prefix.clone();
+                    o.push((key.clone(), v.clone()));
+                    o
+                })
+            })
+            .collect()
+    })
+}
+
+/// The scene text with the overrides set. A key must name an existing table path; its
+/// last part may be new (an optional key). Numeric parts index arrays of tables.
+pub fn apply(text: &str, overrides: &[Override]) -> Result<String, SweepError> {
+    let mut doc: toml::Value = toml::from_str::<toml::Table>(text)
+        .map(toml::Value::Table)
+        .map_err(|e| SweepError::Toml(e.to_string()))?;
+    for (key, value) in overrides {
+        let err = |problem: &str| SweepError::Key {
+            key: key.clone(),
+            problem: problem.into(),
+        };
+        let parts: Vec<&str> = key.split('.').collect();
+        let (last, path) = parts.split_last().ok_or_else(|| err("empty"))?;
+        let mut at = &mut doc;
+        for p in path {
+            at = match at {
+                toml::Value::Table(t) => t.get_mut(*p).ok_or_else(|| err(&format!("no `{p}`")))?,
+                toml::Value::Array(a) => {
+                    let i: usize = p
+                        .parse()
+                        .map_err(|_| err(&format!("`{p}` is not an index")))?;
+                    let n = a.len();
+                    a.get_mut(i)
+                        .ok_or_else(|| err(&format!("index {i} past the {n} entries")))?
+                }
+                _ => return Err(err(&format!("`{p}` is inside a plain value"))),
+            };
+        }
+        match at {
+            toml::Value::Table(t) => {
+                t.insert(last.to_string(), value.clone());
+            }
+            toml::Value::Array(a) => {
+                let i: usize = last
+                    .parse()
+                    .map_err(|_| err("the last part must be an index"))?;
+                let n = a.len();
+                *a.get_mut(i)
+                    .ok_or_else(|| err(&format!("index {i} past the {n} entries")))? =
+                    value.clone();
+            }
+            _ => return Err(err("its parent is a plain value")),
+        }
+    }
+    toml::to_string(&doc).map_err(|e| SweepError::Toml(e.to_string()))
+}
+
+/// What one variant's run recorded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VariantRun {
+    /// The needle's record, every step.
+    pub samples: Vec<NeedleSample>,
+    /// Where the tip first touched the surface, if it did.
+    pub entry: Option<[f64; 3]>,
+}
+
+impl VariantRun {
+    /// Depth of a sample's tip past the entry point along the needle, m (from the first
+    /// sample's tip when the needle never touched), as in `needle_force.csv`.
+    pub fn depth(&self, s: &NeedleSample) -> f64 {
+        let origin = self
+            .entry
+            .or(self.samples.first().map(|f| f.tip))
+            .unwrap_or(s.tip);
+        (0..3)
+            .map(|i| (s.tip[i] - origin[i]) * s.direction[i])
+            .sum()
+    }
+}
+
+/// Runs the scene `text` (relative paths from `base_dir`) for `steps` steps (the scene's
+/// `run.steps` when `None`) on one CPU thread and returns the needle's record.
+pub fn run_variant(
+    text: &str,
+    base_dir: &Path,
+    steps: Option<u64>,
+) -> Result<VariantRun, SweepError> {
+    let run = || -> Result<VariantRun, Box<dyn std::error::Error>> {
+        let scene = Scene::from_toml_str(text, base_dir)?;
+        let prep = Simulation::prepare(&scene)?;
+        let (b, _) = make_backend(&scene, prep.tissue.clone(), Some(BackendChoice::Cpu), None)?;
+        let mut sim = prep.start(b)?;
+        sim.step_n(steps.unwrap_or(scene.run.steps))?;
+        sim.check()?;
+        Ok(VariantRun {
+            entry: sim.entry_point(),
+            samples: sim.take_history(),
+        })
+    };
+    run().map_err(|e| SweepError::Run(e.to_string()))
+}
+
+/// Runs every variant of `text` on `jobs` threads (at least 1), one CPU thread each;
+/// results in the variants' order.
+pub fn sweep(
+    text: &str,
+    base_dir: &Path,
+    variants: &[Vec<Override>],
+    steps: Option<u64>,
+    jobs: usize,
+) -> Vec<Result<VariantRun, SweepError>> {
+    let next = AtomicUsize::new(0);
+    let results: Vec<Mutex<Option<Result<VariantRun, SweepError>>>> =
+        variants.iter().map(|_| Mutex::new(None)).collect();
+    std::thread::scope(|s| {
+        for _ in 0..jobs.max(1).min(variants.len().max(1)) {
+            s.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(v) = variants.get(i) else { break };
+                let r = apply(text, v).and_then(|t| run_variant(&t, base_dir, steps));
+                *results[i].lock().unwrap_or_else(|p| p.into_inner()) = Some(r);
+            });
+        }
+    });
+    results
+        .into_iter()
+        .map(|m| {
+            m.into_inner()
+                .unwrap_or_else(|p| p.into_inner())
+                .unwrap_or_else(|| Err(SweepError::Run("not run (a worker panicked)".into())))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_keys_and_grids() {
+        assert_eq!(parse_value("1e4"), toml::Value::Float(1e4));
+        assert_eq!(parse_value("3"), toml::Value::Integer(3));
+        assert_eq!(parse_value("cpu"), toml::Value::String("cpu".into()));
+        let (k, v) = parse_vary("material.stiffness=10,20.5").unwrap();
+        assert_eq!((k.as_str(), v.len()), ("material.stiffness", 2));
+        assert!(matches!(
+            parse_vary("material.stiffness"),
+            Err(SweepError::Vary(_))
+        ));
+        let g = grid(&[
+            ("a".into(), vec![parse_value("1"), parse_value("2")]),
+            (
+                "b".into(),
+                vec![parse_value("x"), parse_value("y"), parse_value("z")],
+            ),
+        ]);
+        assert_eq!(g.len(), 6);
+        assert_eq!(
+            g[1],
+            vec![
+                ("a".into(), parse_value("1")),
+                ("b".into(), parse_value("y"))
+            ]
+        );
+    }
+
+    #[test]
+    fn overrides_reach_tables_and_arrays_of_tables_and_name_bad_keys() {
+        let text = "[material]\nstiffness = 20.0\n[[needle.keyframe]]\nspeed = 0.05\n";
+        let out = apply(
+            text,
+            &[
+                ("material.stiffness".into(), parse_value("30")),
+                ("needle.keyframe.0.speed".into(), parse_value("0.01")),
+            ],
+        )
+        .unwrap();
+        let t: toml::Table = toml::from_str(&out).unwrap();
+        assert_eq!(t["material"]["stiffness"].as_integer(), Some(30));
+        assert_eq!(t["needle"]["keyframe"][0]["speed"].as_float(), Some(0.01));
+        let e = apply(text, &[("materal.stiffness".into(), parse_value("1"))]).unwrap_err();
+        assert!(e.to_string().contains("no `materal`"), "{e}");
+        let e = apply(
+            text,
+            &[("needle.keyframe.3.speed".into(), parse_value("1"))],
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("index 3 past the 1 entries"), "{e}");
+    }
+}
