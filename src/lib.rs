@@ -41,7 +41,9 @@ pub use needlesim_needle as needle;
 /// The renderer: screenshots (feature `render`) and the live window (feature `view`).
 #[cfg(feature = "render")]
 pub use needlesim_view as view;
-pub use runner::{make_backend, run_scene, RunError, RunOptions, RunSummary, CHECKPOINT_FILE};
+pub use runner::{
+    make_backend, run_scene, start_simulation, RunError, RunOptions, RunSummary, CHECKPOINT_FILE,
+};
 
 /// The default scene of `needlesim run` without a scene file: the paper's experiment, a
 /// needle moved 15 cm into a 639-node cube and rotated 25 degrees (local shape matching).

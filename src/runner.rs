@@ -153,6 +153,18 @@ impl RunSummary {
     }
 }
 
+/// The scene's simulation, started on the backend [`make_backend`] picks, and its warning
+/// (a GPU fallback), if any.
+pub fn start_simulation(
+    scene: &Scene,
+    backend: Option<BackendChoice>,
+    threads: Option<usize>,
+) -> Result<(Simulation, Option<String>), RunError> {
+    let prep = Simulation::prepare(scene)?;
+    let (b, warning) = make_backend(scene, prep.tissue.clone(), backend, threads)?;
+    Ok((prep.start(b)?, warning))
+}
+
 /// The backend a scene asks for (or `backend`, or a CPU backend with `threads` threads,
 /// 0 = all), and a warning when `auto` fell back to the CPU.
 pub fn make_backend(

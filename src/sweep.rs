@@ -3,10 +3,10 @@
 //! `needle.keyframe.0.speed`), each run on one CPU thread so that `jobs` runs use `jobs`
 //! cores once. A variant that fails keeps its typed error; the others complete.
 
-use crate::make_backend;
+use crate::start_simulation;
 use needlesim_core::scene::BackendChoice;
 use needlesim_core::Scene;
-use needlesim_needle::{NeedleSample, Simulation};
+use needlesim_needle::NeedleSample;
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -127,22 +127,9 @@ pub fn apply(text: &str, overrides: &[Override]) -> Result<String, SweepError> {
 pub struct VariantRun {
     /// The needle's record, every step.
     pub samples: Vec<NeedleSample>,
-    /// Where the tip first touched the surface, if it did.
-    pub entry: Option<[f64; 3]>,
-}
-
-impl VariantRun {
-    /// Depth of a sample's tip past the entry point along the needle, m (from the first
-    /// sample's tip when the needle never touched), as in `needle_force.csv`.
-    pub fn depth(&self, s: &NeedleSample) -> f64 {
-        let origin = self
-            .entry
-            .or(self.samples.first().map(|f| f.tip))
-            .unwrap_or(s.tip);
-        (0..3)
-            .map(|i| (s.tip[i] - origin[i]) * s.direction[i])
-            .sum()
-    }
+    /// Each sample's tip depth past the entry point along the needle, m
+    /// ([`needlesim_needle::Simulation::depth_of`], as in `needle_force.csv`).
+    pub depths: Vec<f64>,
 }
 
 /// Runs the scene `text` (relative paths from `base_dir`) for `steps` steps (the scene's
@@ -154,15 +141,15 @@ pub fn run_variant(
 ) -> Result<VariantRun, SweepError> {
     let run = || -> Result<VariantRun, Box<dyn std::error::Error>> {
         let scene = Scene::from_toml_str(text, base_dir)?;
-        let prep = Simulation::prepare(&scene)?;
-        let (b, _) = make_backend(&scene, prep.tissue.clone(), Some(BackendChoice::Cpu), None)?;
-        let mut sim = prep.start(b)?;
+        let (mut sim, _) = start_simulation(&scene, Some(BackendChoice::Cpu), None)?;
         sim.step_n(steps.unwrap_or(scene.run.steps))?;
         sim.check()?;
-        Ok(VariantRun {
-            entry: sim.entry_point(),
-            samples: sim.take_history(),
-        })
+        let samples = sim.take_history();
+        let depths = samples
+            .iter()
+            .map(|s| sim.depth_of(s.tip, s.direction))
+            .collect();
+        Ok(VariantRun { samples, depths })
     };
     run().map_err(|e| SweepError::Run(e.to_string()))
 }

@@ -447,13 +447,11 @@ fn view(
     let default_steps = scene.run.steps;
     let shared = scene.clone();
     let build = move || -> Result<Simulation> {
-        let scene = &shared;
-        let prep = Simulation::prepare(scene)?;
-        let (b, warning) = needlesim::make_backend(scene, prep.tissue.clone(), backend, threads)?;
+        let (sim, warning) = needlesim::start_simulation(&shared, backend, threads)?;
         if let Some(w) = warning {
             eprintln!("warning: {w}");
         }
-        Ok(prep.start(b)?)
+        Ok(sim)
     };
     match screenshot {
         Some(path) => {
@@ -550,13 +548,13 @@ fn sweep(
         let values = values.join(",");
         match r {
             Ok(run) => {
-                for s in &run.samples {
+                for (s, depth) in run.samples.iter().zip(&run.depths) {
                     writeln!(
                         f,
                         "{i},{values},{},{},{},{},{},{},",
                         s.step,
                         s.time,
-                        run.depth(s),
+                        depth,
                         s.force.axial,
                         s.force.lateral,
                         format!("{:?}", s.state).to_lowercase()

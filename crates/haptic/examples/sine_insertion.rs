@@ -9,8 +9,7 @@
 //! ```
 
 use needlesim::core::scene::BackendChoice;
-use needlesim::needle::Simulation;
-use needlesim::{make_backend, Scene};
+use needlesim::{start_simulation, Scene};
 use needlesim_haptic::{Clock, HapticConfig, HapticLoop, SineDevice};
 use std::io::Write;
 
@@ -27,9 +26,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .next()
         .unwrap_or_else(|| "out/haptic/sine_insertion.csv".into());
     let scene = Scene::from_file(&scene_path)?;
-    let prep = Simulation::prepare(&scene)?;
-    let (backend, _) = make_backend(&scene, prep.tissue.clone(), Some(BackendChoice::Cpu), None)?;
-    let sim = prep.start(backend)?;
+    let (sim, _) = start_simulation(&scene, Some(BackendChoice::Cpu), None)?;
     let needle = sim.needle().ok_or("the scene has no needle")?;
     let device = SineDevice::along(needle, 0.04, 0.25, Clock::Wall);
     let config = HapticConfig {

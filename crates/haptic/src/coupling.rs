@@ -44,20 +44,27 @@ impl Default for VirtualCoupling {
             stiffness: k,
             damping: 0.0,
             proxy_mass: m,
-            proxy_damping: 2.0 * (k * m).sqrt(),
+            proxy_damping: VirtualCoupling::critical_damping(k, m),
         }
     }
 }
 
 impl VirtualCoupling {
+    /// The proxy damping that makes the spring `stiffness` on a proxy of mass `mass`
+    /// critically damped, `2 sqrt(K m)`, N s/m.
+    pub fn critical_damping(stiffness: f64, mass: f64) -> f64 {
+        2.0 * (stiffness * mass).sqrt()
+    }
+
     /// The device damping, N s/m, above which the rendered coupling is passive at period
     /// `period` s: `K T / 2 + B`.
     pub fn min_device_damping(&self, period: f64) -> f64 {
         0.5 * self.stiffness * period + self.damping
     }
 
-    /// A parameter that is not finite, negative, or (mass, stiffness) zero: its name.
-    pub fn invalid(&self) -> Option<&'static str> {
+    /// A parameter that is not finite, negative, or (mass, stiffness) zero: its name and
+    /// value.
+    pub fn invalid(&self) -> Option<(&'static str, f64)> {
         let checks = [
             ("stiffness", self.stiffness, true),
             ("damping", self.damping, false),
@@ -67,7 +74,7 @@ impl VirtualCoupling {
         checks
             .into_iter()
             .find(|&(_, v, positive)| !v.is_finite() || v < 0.0 || (positive && v == 0.0))
-            .map(|(name, _, _)| name)
+            .map(|(name, v, _)| (name, v))
     }
 }
 
@@ -182,10 +189,10 @@ mod tests {
         let mut c = VirtualCoupling::default();
         assert_eq!(c.invalid(), None);
         c.proxy_mass = 0.0;
-        assert_eq!(c.invalid(), Some("proxy_mass"));
+        assert_eq!(c.invalid(), Some(("proxy_mass", 0.0)));
         c.proxy_mass = 0.01;
         c.damping = f64::NAN;
-        assert_eq!(c.invalid(), Some("damping"));
+        assert!(matches!(c.invalid(), Some(("damping", v)) if v.is_nan()));
         assert!((VirtualCoupling::default().min_device_damping(1e-3) - 0.15).abs() < 1e-12);
     }
 }

@@ -187,14 +187,7 @@ fn check(config: &HapticConfig, dt: f64) -> Result<Timing, HapticError> {
     if !(config.rate.is_finite() && config.rate > 0.0) {
         return Err(setting("rate", config.rate, "a positive number of Hz"));
     }
-    if let Some(name) = config.coupling.invalid() {
-        let c = &config.coupling;
-        let value = match name {
-            "stiffness" => c.stiffness,
-            "damping" => c.damping,
-            "proxy_mass" => c.proxy_mass,
-            _ => c.proxy_damping,
-        };
+    if let Some((name, value)) = config.coupling.invalid() {
         return Err(setting(
             name,
             value,

@@ -3,7 +3,7 @@
 
 use needlesim::core::scene::BackendChoice;
 use needlesim::needle::{PunctureState, Simulation};
-use needlesim::{make_backend, Scene};
+use needlesim::{start_simulation, Scene};
 use needlesim_haptic::{
     Clock, Device, DeviceError, DevicePose, HapticConfig, HapticError, HapticLoop, SineDevice,
     Tick, TickRecord,
@@ -19,10 +19,9 @@ fn scene_text(name: &str) -> String {
 
 fn simulation(text: &str) -> Simulation {
     let scene = Scene::from_toml_str(text, std::path::Path::new(SCENES)).expect("scene parses");
-    let prep = Simulation::prepare(&scene).expect("scene prepares");
-    let (b, _) = make_backend(&scene, prep.tissue.clone(), Some(BackendChoice::Cpu), None)
-        .expect("cpu backend");
-    prep.start(b).expect("simulation starts")
+    start_simulation(&scene, Some(BackendChoice::Cpu), None)
+        .expect("simulation starts")
+        .0
 }
 
 /// A sinusoidal insertion whose clock is the tick's schedule: the same poses whatever the

@@ -155,8 +155,10 @@ impl PyHapticLoop {
             stiffness: k,
             damping: damping.unwrap_or(d.damping),
             proxy_mass: m,
-            // Critical for the spring unless given (the default's rule).
-            proxy_damping: proxy_damping.unwrap_or_else(|| 2.0 * (k * m).abs().sqrt()),
+            // Critical for the spring unless given (the default's rule; a negative K or m
+            // is named by the loop's check, not made NaN here).
+            proxy_damping: proxy_damping
+                .unwrap_or_else(|| VirtualCoupling::critical_damping(k.abs(), m.abs())),
         };
         let config = HapticConfig {
             rate,
