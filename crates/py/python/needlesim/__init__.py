@@ -11,10 +11,44 @@ A haptic loop steps a simulation at 1 kHz on its own thread (see HapticLoop):
     >>> loop.set_device(base, direction); loop.force
     >>> loop.stop()["period_p99"]
 
+Many runs (needlesim.sweep, needlesim.fit) go through Dask when it is installed
+(pip install needlesim[dask]) and one after another when it is not:
+
+    >>> res = needlesim.sweep("scene.toml", {"material.young_modulus": [1e4, 2e4]})
+    >>> res.force, res.nodes, res.summary          # pandas tables, one row per step
+    >>> fit = needlesim.fit("scene.toml", depth, force, ["material.young_modulus"],
+    ...                     [(5e3, 5e4)])
+
 Arrays are float64 (int64 for indices) copies of the simulation state, shaped
 (n, 3); they do not change when the simulation steps on.
 """
 
 from ._needlesim import HapticLoop, SineDevice, Simulation, adapter, __version__
+from ._fit import FitError, FitResult, fit
+from ._sweep import (
+    OverrideError,
+    SerialSweepWarning,
+    SweepResult,
+    apply_overrides,
+    grid,
+    load_scene,
+    sweep,
+)
 
-__all__ = ["HapticLoop", "SineDevice", "Simulation", "adapter", "__version__"]
+__all__ = [
+    "FitError",
+    "FitResult",
+    "HapticLoop",
+    "OverrideError",
+    "SerialSweepWarning",
+    "SineDevice",
+    "Simulation",
+    "SweepResult",
+    "adapter",
+    "apply_overrides",
+    "fit",
+    "grid",
+    "load_scene",
+    "sweep",
+    "__version__",
+]
