@@ -72,7 +72,7 @@ def fit(
     smoothing: Optional[float] = 1e-3,
     stages: Sequence[float] = (4.0, 1.0),
     rel_step: float = 0.05,
-    max_iterations: int = 10,
+    max_iterations: int = 15,
     backend: str = "cpu",
     threads: Optional[int] = 1,
     files: str = "inline",
@@ -196,8 +196,17 @@ def fit(
             )
             x = to_x(out.x)
             iterations += int(out.nfev)
+            stopped = not out.success
         r, jac, noise = batch(x, target, run_sweep)
 
+    if stopped:
+        warnings.warn(
+            f"needlesim.fit: the last stage stopped at max_iterations={max_iterations} "
+            "before converging; the parameters may still be moving and the uncertainty "
+            "understates the error (raise max_iterations, or start nearer)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     # Sandwich covariance: the smoothed residuals are S e with e the measured points'
     # errors, independent with variance `noise`, so cov(r) = noise S S^T.
     bread = np.linalg.pinv(jac.T @ jac) @ jac.T
