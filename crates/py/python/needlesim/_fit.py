@@ -81,7 +81,7 @@ def fit(
     """Fits the scene values at the dotted keys ``parameters`` (within ``bounds``, one
     (low, high) pair each) so that the simulated needle force (``force``: ``"axial"`` or
     ``"lateral"``) matches ``measured_force`` at ``measured_depth`` (m, tip depth past the
-    entry point, as in ``Simulation.history()["depth"]``).
+    first contact point, as in ``Simulation.history()["depth"]``).
 
     x0: the starting values (default: the scene's values, or the bounds' middle where the
         scene has none).
