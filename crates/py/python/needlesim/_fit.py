@@ -28,7 +28,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from ._sweep import SceneLike, SerialSweepWarning, _client, load_scene, sweep
+from ._sweep import OverrideError, SceneLike, _child, _client, load_scene, sweep
 
 __all__ = ["FitError", "FitResult", "fit"]
 
@@ -133,6 +133,7 @@ def fit(
 
     column = "axial_force_n" if force == "axial" else "lateral_force_n"
     cache: Dict[Tuple[float, ...], Tuple[np.ndarray, List[Tuple[Any, Any]]]] = {}
+    fitted: Dict[Tuple[Any, int], Tuple[np.ndarray, np.ndarray]] = {}
     evaluations: List[Dict[str, Any]] = []
 
     def simulate(x: np.ndarray, run_sweep: Any) -> Tuple[np.ndarray, List[Tuple[Any, Any]]]:
@@ -157,8 +158,12 @@ def fit(
 
     def batch(
         x: np.ndarray, target: _Target, run_sweep: Any
-    ) -> Tuple[np.ndarray, np.ndarray, float]:
-        """Residual, Jacobian and measured-noise variance at x against target."""
+    ) -> Tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian at x against target (cached: least_squares asks for the
+        residual and then the Jacobian at the same point)."""
+        key = (tuple(x), id(target))
+        if key in fitted:
+            return fitted[key]
         h, sims = simulate(x, run_sweep)
         curves = [target.model(*sim) for sim in sims]
         r0 = curves[0] - target.values
@@ -170,13 +175,14 @@ def fit(
             }
         )
         jac = np.stack([(curves[i + 1] - curves[0]) / h[i] for i in range(len(x))], axis=1)
-        return r0, jac, target.noise(*sims[0])
+        fitted[key] = (r0, jac)
+        return r0, jac
 
     span = hi - lo
     to_x = lambda u: lo + np.asarray(u) * span  # noqa: E731
     x = start
     iterations = 0
-    with _fit_client(client, threads) as c:
+    with _client(client, threads, "needlesim.fit") as c:
 
         def run_sweep(variants: List[Dict[str, Any]]) -> Any:
             return sweep(
@@ -197,7 +203,8 @@ def fit(
             x = to_x(out.x)
             iterations += int(out.nfev)
             stopped = not out.success
-        r, jac, noise = batch(x, target, run_sweep)
+        r, jac = batch(x, target, run_sweep)
+        noise = target.noise(*simulate(x, run_sweep)[1][0])
 
     if stopped:
         warnings.warn(
@@ -254,14 +261,11 @@ def _start(
     start = (lo + hi) / 2
     for i, name in enumerate(names):
         at: Any = scene
-        for part in name.split("."):
-            if isinstance(at, dict) and part in at:
-                at = at[part]
-            elif isinstance(at, list) and part.isdigit() and int(part) < len(at):
-                at = at[int(part)]
-            else:
-                at = None
-                break
+        try:
+            for part in name.split("."):
+                at = _child(at, part, name)
+        except OverrideError:
+            at = None  # an optional key the scene leaves out
         if isinstance(at, (int, float)) and lo[i] <= at <= hi[i]:
             start[i] = float(at)
     return start
@@ -321,35 +325,3 @@ class _Target:
         depth, force = self.insertion(depth, force)
         r = self.raw_force - np.interp(self.raw_depth, depth, force)
         return float(r @ r) / max(1, len(r) - 1)
-
-
-class _fit_client:
-    """One client for every batch of the fit (sweep's rules), serial without Dask."""
-
-    def __init__(self, client: Any, threads: Optional[int]):
-        self.inner = None
-        self.client = client
-        if isinstance(client, str) and client == "serial":
-            return
-        try:
-            import distributed
-        except ModuleNotFoundError:
-            if client is not None:
-                raise
-            warnings.warn(
-                "needlesim.fit: dask.distributed is not installed (pip install "
-                "needlesim[dask]); running the simulations one after another",
-                SerialSweepWarning,
-                stacklevel=3,
-            )
-            self.client = "serial"
-            return
-        self.inner = _client(distributed, client, threads)
-        self.client = self.inner.client
-
-    def __enter__(self) -> Any:
-        return self.client
-
-    def __exit__(self, *exc: Any) -> None:
-        if self.inner is not None:
-            self.inner.__exit__(*exc)

@@ -355,21 +355,9 @@ def _execute(
 ) -> Iterable[Tuple[int, Dict[str, Any]]]:
     if not tasks:
         return []
-    if isinstance(client, str) and client == "serial":
-        return [(i, run_variant(t)) for i, t in tasks]
-    try:
-        import distributed
-    except ModuleNotFoundError:
-        if client is not None:
-            raise
-        warnings.warn(
-            "needlesim.sweep: dask.distributed is not installed (pip install "
-            "needlesim[dask]); running the variants one after another in this process",
-            SerialSweepWarning,
-            stacklevel=3,
-        )
-        return [(i, run_variant(t)) for i, t in tasks]
-    with _client(distributed, client, threads) as c:
+    with _client(client, threads, "needlesim.sweep") as c:
+        if isinstance(c, str):
+            return [(i, run_variant(t)) for i, t in tasks]
         futures = c.map(run_variant, [t for _, t in tasks], pure=False)
         out = []
         try:
@@ -384,10 +372,29 @@ def _execute(
 
 
 class _client:
-    """The client to use, closing it (and its cluster) after if started here."""
+    """The client to use: ``"serial"`` when asked for or when dask.distributed is missing
+    (with a SerialSweepWarning from ``caller``), else a Dask client; closes the client
+    (and its cluster) after if started here."""
 
-    def __init__(self, distributed: Any, client: Any, threads: Optional[int]):
-        self.owned = []
+    def __init__(self, client: Any, threads: Optional[int], caller: str):
+        self.owned: List[Any] = []
+        self.client = client
+        if isinstance(client, str) and client == "serial":
+            return
+        try:
+            import distributed
+        except ModuleNotFoundError:
+            if client is not None:
+                raise
+            warnings.warn(
+                f"{caller}: dask.distributed is not installed (pip install "
+                "needlesim[dask]); running the simulations one after another in this "
+                "process",
+                SerialSweepWarning,
+                stacklevel=4,
+            )
+            self.client = "serial"
+            return
         if client is None:
             try:
                 client = distributed.default_client()
