@@ -7,7 +7,7 @@ use needlesim_core::scene::BackendChoice;
 use needlesim_core::{
     Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue,
 };
-use needlesim_gpu::GpuBackend;
+use needlesim_gpu::{GpuBackend, GpuContext};
 use needlesim_needle::{NeedleSample, Simulation, SimulationError};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -163,6 +163,15 @@ pub fn start_simulation(
     let prep = Simulation::prepare(scene)?;
     let (b, warning) = make_backend(scene, prep.tissue.clone(), backend, threads)?;
     Ok((prep.start(b)?, warning))
+}
+
+/// The scene's simulation on the GPU backend on the device of `ctx` (one the caller
+/// shares: a window's, a renderer's). Make `ctx` with storage bindings of at least
+/// [`needlesim_gpu::largest_buffer`] of the prepared tissue.
+pub fn start_simulation_on(scene: &Scene, ctx: &GpuContext) -> Result<Simulation, RunError> {
+    let prep = Simulation::prepare(scene)?;
+    let backend = GpuBackend::with_context(ctx.clone(), &prep.tissue)?;
+    Ok(prep.start(Box::new(backend))?)
 }
 
 /// The backend a scene asks for (or `backend`, or a CPU backend with `threads` threads,

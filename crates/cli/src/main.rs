@@ -71,31 +71,7 @@ enum Command {
     /// R reset, +/- speed, arrows and PageUp/PageDown move the needle; right-drag moves
     /// the needle, left-drag orbits, wheel zooms), or with --screenshot a PNG after
     /// --steps steps, without a window.
-    View {
-        /// Scene file (TOML); the shipped default when omitted.
-        scene: Option<PathBuf>,
-        /// Write a PNG here after the steps instead of opening a window.
-        #[arg(long, value_name = "PNG")]
-        screenshot: Option<PathBuf>,
-        /// Steps before the screenshot [default: the scene's run.steps].
-        #[arg(long, requires = "screenshot")]
-        steps: Option<u64>,
-        /// Image or window width in pixels [default: 800 for a screenshot, 1024 for a
-        /// window].
-        #[arg(long)]
-        width: Option<u32>,
-        /// Image or window height in pixels [default: 600 for a screenshot, 768 for a
-        /// window].
-        #[arg(long)]
-        height: Option<u32>,
-        /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
-        #[arg(long, value_parser = parse_backend)]
-        backend: Option<BackendChoice>,
-        /// CPU threads: 1 for the single-threaded backend, 0 for all threads (overrides
-        /// --backend).
-        #[arg(long)]
-        threads: Option<usize>,
-    },
+    View(ViewArgs),
     /// Run a scene once per combination of the --vary values, on local cores (one CPU
     /// thread per run), and write every run's needle force history to one CSV; a failing
     /// variant gets a row with its error and the others complete.
@@ -121,6 +97,37 @@ enum Command {
         /// Scene file (TOML); the shipped default when omitted.
         scene: Option<PathBuf>,
     },
+}
+
+/// The arguments of `needlesim view`.
+#[derive(clap::Args, Debug)]
+struct ViewArgs {
+    /// Scene file (TOML); the shipped default when omitted.
+    scene: Option<PathBuf>,
+    /// Write a PNG here after the steps instead of opening a window.
+    #[arg(long, value_name = "PNG")]
+    screenshot: Option<PathBuf>,
+    /// Steps before the screenshot [default: the scene's run.steps].
+    #[arg(long, requires = "screenshot")]
+    steps: Option<u64>,
+    /// Image or window width in pixels [default: 800 for a screenshot, 1024 for a
+    /// window].
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image or window height in pixels [default: 600 for a screenshot, 768 for a
+    /// window].
+    #[arg(long)]
+    height: Option<u32>,
+    /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
+    #[arg(long, value_parser = parse_backend)]
+    backend: Option<BackendChoice>,
+    /// CPU threads: 1 for the single-threaded backend, 0 for all threads (overrides
+    /// --backend).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Close the window after this many drawn frames (a smoke test under Xvfb).
+    #[arg(long, conflicts_with = "screenshot")]
+    frames: Option<u64>,
 }
 
 fn parse_backend(s: &str) -> Result<BackendChoice, String> {
@@ -275,15 +282,7 @@ fn run(cli: Cli) -> Result<()> {
                 summary.elapsed.as_secs_f64()
             )?;
         }
-        Command::View {
-            scene,
-            screenshot,
-            steps,
-            width,
-            height,
-            backend,
-            threads,
-        } => view(scene, screenshot, steps, width, height, backend, threads)?,
+        Command::View(args) => view(args)?,
         Command::Sweep {
             scene,
             vary,
@@ -428,15 +427,17 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 /// `needlesim view`: a screenshot after some steps, or the interactive window.
-fn view(
-    scene_path: Option<PathBuf>,
-    screenshot: Option<PathBuf>,
-    steps: Option<u64>,
-    width: Option<u32>,
-    height: Option<u32>,
-    backend: Option<BackendChoice>,
-    threads: Option<usize>,
-) -> Result<()> {
+fn view(args: ViewArgs) -> Result<()> {
+    let ViewArgs {
+        scene: scene_path,
+        screenshot,
+        steps,
+        width,
+        height,
+        backend,
+        threads,
+        frames,
+    } = args;
     use needlesim::needle::Simulation;
     let (w, h) = match screenshot {
         Some(_) => (width.unwrap_or(800), height.unwrap_or(600)),
@@ -445,8 +446,20 @@ fn view(
     needlesim_view::render::check_size(w, h, needlesim_view::MAX_SIZE)?;
     let (scene, stem) = load(&scene_path)?;
     let default_steps = scene.run.steps;
+    // On the GPU backend the picture is drawn on the simulation's own device: the device
+    // is made for the scene's largest buffer (the renderer's, or the window's adapter).
+    let on_gpu = threads.is_none() && backend.unwrap_or(scene.backend) == BackendChoice::Gpu;
+    let largest = match on_gpu {
+        true => Some(needlesim::gpu::largest_buffer(
+            &Simulation::prepare(&scene)?.tissue,
+        )),
+        false => None,
+    };
     let shared = scene.clone();
-    let build = move || -> Result<Simulation> {
+    let build = move |ctx: Option<&GpuContext>| -> Result<Simulation> {
+        if let Some(ctx) = ctx {
+            return Ok(needlesim::start_simulation_on(&shared, ctx)?);
+        }
         let (sim, warning) = needlesim::start_simulation(&shared, backend, threads)?;
         if let Some(w) = warning {
             eprintln!("warning: {w}");
@@ -455,20 +468,13 @@ fn view(
     };
     match screenshot {
         Some(path) => {
-            // The renderer first: no adapter is found out before the steps, not after. On
-            // the GPU backend the renderer shares the simulation's device.
-            let on_gpu =
-                threads.is_none() && backend.unwrap_or(scene.backend) == BackendChoice::Gpu;
-            let (mut renderer, mut sim) = if on_gpu {
-                let prep = Simulation::prepare(&scene)?;
-                let ctx = GpuContext::new(needlesim::gpu::largest_buffer(&prep.tissue))?;
-                let b = needlesim::gpu::GpuBackend::with_context(ctx.clone(), &prep.tissue)?;
-                (
-                    needlesim_view::Renderer::from_gpu(&ctx),
-                    prep.start(Box::new(b))?,
-                )
-            } else {
-                (needlesim_view::Renderer::headless()?, build()?)
+            // The renderer first: no adapter is found out before the steps, not after.
+            let (mut renderer, mut sim) = match largest {
+                Some(bytes) => {
+                    let ctx = GpuContext::new(bytes)?;
+                    (needlesim_view::Renderer::from_gpu(&ctx), build(Some(&ctx))?)
+                }
+                None => (needlesim_view::Renderer::headless()?, build(None)?),
             };
             let n = steps.unwrap_or(default_steps);
             sim.step_n(n)
@@ -489,11 +495,24 @@ fn view(
                 width: w,
                 height: h,
                 title: format!("needlesim: {stem}"),
+                share_gpu: largest,
+                frames,
                 ..Default::default()
             };
-            needlesim_view::window::run_window(
-                Box::new(move || build().map_err(Into::into)),
+            let report = needlesim_view::window::run_window(
+                Box::new(move |ctx| build(ctx).map_err(Into::into)),
                 options,
+            )?;
+            let device = match report.shared_gpu {
+                true => "simulation on the same device",
+                false => "simulation on the CPU or a device of its own",
+            };
+            say!(
+                "window  {} frames, t = {:.3} s simulated in {:.3} s, drawn on {} ({device})",
+                report.frames,
+                report.simulated,
+                report.wall,
+                report.adapter
             )?;
         }
     }

@@ -233,6 +233,59 @@ fn view_writes_a_screenshot_and_rejects_bad_sizes() {
     assert!(!dir.path().join("none.png").exists());
 }
 
+/// `needlesim view` opens its window under a virtual X server (Xvfb, lavapipe), draws the
+/// asked number of frames on the GPU backend and says the simulation ran on the window's
+/// device; skipped without `xvfb-run` unless NEEDLESIM_REQUIRE_GPU is set (scripts/test
+/// installs it).
+#[test]
+fn view_window_draws_frames_on_the_simulations_device() {
+    let have_xvfb = std::process::Command::new("sh")
+        .args(["-c", "command -v xvfb-run"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have_xvfb {
+        assert!(
+            std::env::var("NEEDLESIM_REQUIRE_GPU").is_err(),
+            "xvfb-run is missing (apt-get install xvfb xauth)"
+        );
+        eprintln!("skipped: no xvfb-run");
+        return;
+    }
+    // `timeout` ends a window that would never close (the test fails on its status).
+    let o = std::process::Command::new("timeout")
+        .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_needlesim"))
+        .args([
+            "view",
+            "--backend",
+            "gpu",
+            "--frames",
+            "8",
+            "--width",
+            "320",
+            "--height",
+            "240",
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("window  8 frames"), "{stdout}");
+    assert!(
+        stdout.contains("(simulation on the same device)"),
+        "{stdout}"
+    );
+    // Some simulated time passed: the frames stepped the scene.
+    let t: f64 = stdout
+        .split("t = ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no simulated time in {stdout}"));
+    assert!(t > 0.0, "{stdout}");
+}
+
 /// `needlesim sweep` runs the grid of the --vary values on two threads: every variant's
 /// needle force history is bitwise the one of the same scene run alone (one CPU thread,
 /// in this process), and a failing variant gets its error while the others complete.

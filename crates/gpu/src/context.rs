@@ -78,9 +78,7 @@ impl GpuContext {
     }
 
     /// Creates a device on the highest-performance adapter, asking for the downlevel
-    /// defaults plus 8 storage buffers per stage and a storage binding of
-    /// `largest_buffer` bytes (at least the default 128 MiB where the adapter allows it),
-    /// and for timestamp queries where the adapter has them (kernel profiling).
+    /// defaults plus what [`GpuContext::on_adapter`] adds for the kernels.
     pub fn new(largest_buffer: u64) -> Result<GpuContext, GpuError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
@@ -91,6 +89,19 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        GpuContext::on_adapter(&adapter, largest_buffer, wgpu::Limits::downlevel_defaults())
+    }
+
+    /// Creates a device on `adapter` (one chosen by the caller, e.g. able to present to a
+    /// window) with the limits `base` raised to what the kernels need: 8 storage buffers
+    /// per stage and a storage binding of `largest_buffer` bytes (at least the default
+    /// 128 MiB where the adapter allows it); timestamp queries where the adapter has them
+    /// (kernel profiling). `base` carries the caller's own needs (texture sizes, say).
+    pub fn on_adapter(
+        adapter: &wgpu::Adapter,
+        largest_buffer: u64,
+        base: wgpu::Limits,
+    ) -> Result<GpuContext, GpuError> {
         let info = adapter.get_info();
         let available = adapter.limits();
         if largest_buffer > available.max_storage_buffer_binding_size {
@@ -103,15 +114,20 @@ impl GpuContext {
         }
         let binding = largest_buffer
             .max(128 << 20)
+            .max(base.max_storage_buffer_binding_size)
             .min(available.max_storage_buffer_binding_size);
         let limits = wgpu::Limits {
-            max_storage_buffers_per_shader_stage: 8,
+            max_storage_buffers_per_shader_stage: base.max_storage_buffers_per_shader_stage.max(8),
             max_storage_buffer_binding_size: binding,
-            max_buffer_size: binding.max(largest_buffer).min(available.max_buffer_size),
+            max_buffer_size: binding
+                .max(largest_buffer)
+                .max(base.max_buffer_size)
+                .min(available.max_buffer_size),
             max_compute_workgroups_per_dimension: available
                 .max_compute_workgroups_per_dimension
-                .min(65535),
-            ..wgpu::Limits::downlevel_defaults()
+                .min(65535)
+                .max(base.max_compute_workgroups_per_dimension),
+            ..base
         };
         let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {

@@ -97,6 +97,9 @@ pub enum ViewError {
     /// The closure that builds the simulation failed (window mode: start and reset).
     #[error("building the simulation: {0}")]
     Build(String),
+    /// The simulation's GPU device could not be made on the window's adapter.
+    #[error(transparent)]
+    Gpu(#[from] needlesim_gpu::GpuError),
     /// The window could not be opened or driven.
     #[error("window: {0}")]
     Window(String),

@@ -600,20 +600,24 @@ pub(crate) fn request_device(
 /// allows up to [`MAX_SIZE`].
 pub(crate) fn device_on(adapter: &wgpu::Adapter) -> Result<(wgpu::Device, wgpu::Queue), ViewError> {
     let info = adapter.get_info();
-    let available = adapter.limits();
-    let limits = wgpu::Limits {
-        max_texture_dimension_2d: available.max_texture_dimension_2d.min(MAX_SIZE),
-        ..wgpu::Limits::downlevel_defaults()
-    };
     pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("needlesim-view"),
-        required_limits: limits,
+        required_limits: view_limits(adapter),
         ..Default::default()
     }))
     .map_err(|e| ViewError::Device {
         adapter: info.name.clone(),
         message: e.to_string(),
     })
+}
+
+/// What drawing needs of a device on `adapter`: the downlevel limits, with textures as
+/// large as the adapter allows up to [`MAX_SIZE`].
+pub(crate) fn view_limits(adapter: &wgpu::Adapter) -> wgpu::Limits {
+    wgpu::Limits {
+        max_texture_dimension_2d: adapter.limits().max_texture_dimension_2d.min(MAX_SIZE),
+        ..wgpu::Limits::downlevel_defaults()
+    }
 }
 
 /// The high-performance adapter, compatible with `surface` when given.

@@ -15,12 +15,17 @@
 //! Mouse: drag with the left button to orbit, wheel to zoom; drag with the right button to
 //! move the needle ([`WindowOptions::mouse_advance`] m per pixel up, advancing;
 //! [`WindowOptions::mouse_turn`] degrees per pixel sideways, turning about the same pivot).
+//!
+//! With [`WindowOptions::share_gpu`] the simulation's GPU backend runs on the window's own
+//! device (one adapter that can present, one device, one queue): the build closure gets
+//! its [`GpuContext`]. Otherwise the closure gets `None` and picks its backend itself.
 
 use crate::camera::Camera;
 use crate::frame::Frame;
-use crate::render::{device_on, request_adapter, Renderer};
+use crate::render::{device_on, request_adapter, view_limits, Renderer};
 use crate::ViewError;
 use glam::{DQuat, DVec3};
+use needlesim_gpu::GpuContext;
 use needlesim_needle::{PunctureState, Simulation};
 use std::collections::HashSet;
 use std::sync::Arc;
@@ -53,6 +58,13 @@ pub struct WindowOptions {
     pub mouse_turn: f64,
     /// The window title's prefix (the scene name, say).
     pub title: String,
+    /// `Some(bytes)`: run the simulation on the window's GPU device. The device is made
+    /// with the kernels' limits for storage bindings of `bytes` (the scene's
+    /// `needlesim_gpu::largest_buffer`) and the build closure receives its context.
+    pub share_gpu: Option<u64>,
+    /// Close the window after this many drawn frames (smoke tests, recordings); `None`
+    /// runs until closed.
+    pub frames: Option<u64>,
 }
 
 impl Default for WindowOptions {
@@ -67,21 +79,47 @@ impl Default for WindowOptions {
             mouse_advance: 2e-4,
             mouse_turn: 0.2,
             title: "needlesim".into(),
+            share_gpu: None,
+            frames: None,
         }
     }
 }
 
-/// Builds the simulation: at the start and on every reset (R).
-pub type Build = Box<dyn FnMut() -> Result<Simulation, Box<dyn std::error::Error + Send + Sync>>>;
+/// Builds the simulation: at the start and on every reset (R). The argument is the
+/// window's GPU context when [`WindowOptions::share_gpu`] is set (build the GPU backend on
+/// it), `None` otherwise.
+pub type Build = Box<
+    dyn FnMut(Option<&GpuContext>) -> Result<Simulation, Box<dyn std::error::Error + Send + Sync>>,
+>;
+
+/// What a window session did, returned when it closes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowReport {
+    /// Frames drawn.
+    pub frames: u64,
+    /// Simulated time at the close (since the last reset), s.
+    pub simulated: f64,
+    /// Wall time from the first frame to the close, s.
+    pub wall: f64,
+    /// The adapter drawn on ([`GpuContext::describe`]'s form when shared).
+    pub adapter: String,
+    /// Whether the simulation ran on the window's device.
+    pub shared_gpu: bool,
+}
 
 /// Wall time spent stepping per frame at most.
 const STEP_BUDGET: Duration = Duration::from_millis(40);
 
 /// Opens a window, steps the simulation that `build` makes in real time and draws it until
-/// the window is closed. Errors of the simulation or the GPU close the window and come
-/// back here.
-pub fn run_window(mut build: Build, options: WindowOptions) -> Result<(), ViewError> {
-    let sim = build().map_err(|e| ViewError::Build(e.to_string()))?;
+/// the window is closed (or [`WindowOptions::frames`] are drawn). Errors of the simulation
+/// or the GPU close the window and come back here.
+pub fn run_window(mut build: Build, options: WindowOptions) -> Result<WindowReport, ViewError> {
+    // Without a shared device the simulation is built at once (a bad scene fails before a
+    // window opens); with one, when the window's device exists.
+    let sim = match options.share_gpu {
+        None => Some(build(None).map_err(|e| ViewError::Build(e.to_string()))?),
+        Some(_) => None,
+    };
     let event_loop = EventLoop::new().map_err(|e| ViewError::Window(e.to_string()))?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut app = App {
@@ -103,14 +141,25 @@ pub fn run_window(mut build: Build, options: WindowOptions) -> Result<(), ViewEr
         ratio: Ratio::default(),
         title_at: Instant::now(),
         error: None,
+        frames: 0,
+        started: None,
     };
     event_loop
         .run_app(&mut app)
         .map_err(|e| ViewError::Window(e.to_string()))?;
-    match app.error {
-        Some(e) => Err(e),
-        None => Ok(()),
+    if let Some(e) = app.error {
+        return Err(e);
     }
+    Ok(WindowReport {
+        frames: app.frames,
+        simulated: app.sim.as_ref().map_or(0.0, |s| s.time()),
+        wall: app.started.map_or(0.0, |t| t.elapsed().as_secs_f64()),
+        adapter: app
+            .gfx
+            .as_ref()
+            .map_or(String::new(), |g| g.adapter.clone()),
+        shared_gpu: app.gfx.as_ref().is_some_and(|g| g.gpu.is_some()),
+    })
 }
 
 /// The window and what draws into it.
@@ -119,6 +168,10 @@ struct Gfx {
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
     renderer: Renderer,
+    /// The simulation's context when it shares the window's device.
+    gpu: Option<GpuContext>,
+    /// The adapter, in words.
+    adapter: String,
 }
 
 impl Gfx {
@@ -137,7 +190,17 @@ impl Gfx {
             .create_surface(window.clone())
             .map_err(|e| ViewError::Window(format!("creating the surface: {e}")))?;
         let adapter = request_adapter(&instance, Some(&surface))?;
-        let (device, queue) = device_on(&adapter)?;
+        let (gpu, device, queue, name) = match options.share_gpu {
+            Some(bytes) => {
+                let ctx = GpuContext::on_adapter(&adapter, bytes, view_limits(&adapter))?;
+                let (d, q, name) = (ctx.device.clone(), ctx.queue.clone(), ctx.describe());
+                (Some(ctx), d, q, name)
+            }
+            None => {
+                let (d, q) = device_on(&adapter)?;
+                (None, d, q, adapter.get_info().name)
+            }
+        };
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
@@ -160,6 +223,8 @@ impl Gfx {
             surface,
             config,
             renderer,
+            gpu,
+            adapter: name,
         })
     }
 
@@ -219,7 +284,8 @@ impl Ratio {
 struct App {
     options: WindowOptions,
     build: Build,
-    sim: Simulation,
+    /// `None` until the window's device exists when the simulation shares it.
+    sim: Option<Simulation>,
     gfx: Option<Gfx>,
     camera: Option<Camera>,
     speed: f64,
@@ -238,6 +304,10 @@ struct App {
     ratio: Ratio,
     title_at: Instant,
     error: Option<ViewError>,
+    /// Frames drawn.
+    frames: u64,
+    /// When the first frame was drawn.
+    started: Option<Instant>,
 }
 
 /// The needle's manual motion for one step from the held keys: (advance m, turn rad,
@@ -280,9 +350,22 @@ impl App {
         event_loop.exit();
     }
 
+    /// Builds (or rebuilds) the simulation, on the window's device when it is shared.
+    fn rebuild(&mut self) -> Result<(), ViewError> {
+        let ctx = self.gfx.as_ref().and_then(|g| g.gpu.as_ref());
+        let sim = (self.build)(ctx).map_err(|e| ViewError::Build(e.to_string()))?;
+        self.sim = Some(sim);
+        self.camera = None;
+        self.backlog = 0.0;
+        Ok(())
+    }
+
     /// One simulation step, with the held needle keys applied first.
     fn step(&mut self) -> Result<(), ViewError> {
-        let dt = self.sim.dt();
+        let Some(sim) = self.sim.as_mut() else {
+            return Ok(());
+        };
+        let dt = sim.dt();
         let keys = manual_motion(&self.keys, &self.options, dt);
         // The mouse's motion is applied at most twice the keys' speed a step (the rest
         // later): a fast drag must not move the tip several node spacings in one step.
@@ -301,25 +384,26 @@ impl App {
             Some(k) => Some(std::array::from_fn(|i| k[i] + mouse[i])),
             None => (mouse != [0.0; 3]).then_some(mouse),
         };
-        if let (Some(m), Some(n)) = (motion, self.sim.needle()) {
-            let pivot = match (self.sim.state(), self.sim.entry_point()) {
+        if let (Some(m), Some(n)) = (motion, sim.needle()) {
+            let pivot = match (sim.state(), sim.entry_point()) {
                 (PunctureState::Outside, _) | (_, None) => n.base(),
                 (_, Some(e)) => e,
             };
             let (base, dir) = moved_pose(n.base(), n.direction(), pivot, m);
-            self.sim.set_pose(base, dir)?;
+            sim.set_pose(base, dir)?;
         }
-        self.sim.step()?;
+        sim.step()?;
         Ok(())
     }
 
     /// Steps for the wall time since the last frame, then draws.
     fn frame(&mut self) -> Result<(), ViewError> {
+        let Some((dt, t0)) = self.sim.as_ref().map(|s| (s.dt(), s.time())) else {
+            return Ok(());
+        };
         let now = Instant::now();
         let wall = now.duration_since(self.last).as_secs_f64().min(0.25);
         self.last = now;
-        let dt = self.sim.dt();
-        let t0 = self.sim.time();
         if self.paused {
             self.backlog = 0.0;
             if std::mem::take(&mut self.single_step) {
@@ -339,8 +423,11 @@ impl App {
             // What could not be simulated in time is dropped.
             self.backlog = self.backlog.min(dt);
         }
-        self.ratio.add(self.sim.time() - t0, wall);
-        let frame = Frame::gather(&mut self.sim)?;
+        let Some(sim) = self.sim.as_mut() else {
+            return Ok(());
+        };
+        self.ratio.add(sim.time() - t0, wall);
+        let frame = Frame::gather(sim)?;
         let camera = *self.camera.get_or_insert_with(|| Camera::frame(&frame));
         if self.title_at.elapsed() > Duration::from_millis(250) {
             self.title_at = Instant::now();
@@ -351,25 +438,30 @@ impl App {
         }
         if let Some(g) = &mut self.gfx {
             g.draw(&frame, &camera)?;
+            self.frames += 1;
+            self.started.get_or_insert_with(Instant::now);
         }
         Ok(())
     }
 
     fn title(&self) -> String {
+        let Some(sim) = self.sim.as_ref() else {
+            return self.options.title.clone();
+        };
         let mut t = format!(
             "{}  t = {:.3} s  x{:.2} real time (speed {})",
             self.options.title,
-            self.sim.time(),
+            sim.time(),
             self.ratio.shown,
             self.speed
         );
-        if let Some(n) = self.sim.needle() {
-            let depth = self.sim.depth_of(n.tip(), n.direction());
+        if let Some(n) = sim.needle() {
+            let depth = sim.depth_of(n.tip(), n.direction());
             t.push_str(&format!(
                 "  {:?}  depth {:.1} mm  force {:.3} N",
-                self.sim.state(),
+                sim.state(),
                 depth * 1e3,
-                self.sim.needle_force().axial
+                sim.needle_force().axial
             ));
         }
         if self.paused {
@@ -397,11 +489,7 @@ impl App {
                 "q" | "Q" => return Ok(true),
                 "+" | "=" => self.speed = (self.speed * 2.0).min(64.0),
                 "-" | "_" => self.speed = (self.speed * 0.5).max(1.0 / 64.0),
-                "r" | "R" => {
-                    self.sim = (self.build)().map_err(|e| ViewError::Build(e.to_string()))?;
-                    self.camera = None;
-                    self.backlog = 0.0;
-                }
+                "r" | "R" => self.rebuild()?,
                 _ => {}
             },
             _ => {}
@@ -418,6 +506,11 @@ impl ApplicationHandler for App {
                 Ok(g) => {
                     g.window.request_redraw();
                     self.gfx = Some(g);
+                    if self.sim.is_none() {
+                        if let Err(e) = self.rebuild() {
+                            return self.fail(event_loop, e);
+                        }
+                    }
                     self.last = Instant::now();
                 }
                 Err(e) => self.fail(event_loop, e),
@@ -479,6 +572,8 @@ impl ApplicationHandler for App {
             WindowEvent::RedrawRequested => {
                 if let Err(e) = self.frame() {
                     self.fail(event_loop, e);
+                } else if self.options.frames.is_some_and(|n| self.frames >= n) {
+                    event_loop.exit();
                 }
             }
             _ => {}
