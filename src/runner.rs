@@ -385,7 +385,10 @@ pub fn run_scene(
     };
     let resume_at = options.resume.is_some().then(|| sim.steps());
     let has_needle = sim.needle().is_some();
-    let total = options.steps.unwrap_or(scene.run.steps);
+    let total = match options.steps {
+        Some(n) => n,
+        None => scene.run.steps_at(sim.dt())?,
+    };
     let every = scene.run.output_every;
     let (mut outputs, kept) = if options.write_files {
         let (o, kept) = Outputs::create(scene, &sim, &options.out_dir, resume_at)?;

@@ -142,7 +142,11 @@ pub fn run_variant(
     let run = || -> Result<VariantRun, Box<dyn std::error::Error>> {
         let scene = Scene::from_toml_str(text, base_dir)?;
         let (mut sim, _) = start_simulation(&scene, Some(BackendChoice::Cpu), None)?;
-        sim.step_n(steps.unwrap_or(scene.run.steps))?;
+        let steps = match steps {
+            Some(n) => n,
+            None => scene.run.steps_at(sim.dt())?,
+        };
+        sim.step_n(steps)?;
         sim.check()?;
         let samples = sim.take_history();
         let depths = samples

@@ -31,7 +31,7 @@ enum Command {
         /// Output directory [default: out/<scene name>].
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Steps to run (overrides the scene's run.steps).
+        /// Steps to run (overrides the scene's run.steps or run.duration).
         #[arg(long)]
         steps: Option<u64>,
         /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
@@ -82,7 +82,7 @@ enum Command {
         /// `needle.keyframe.0.speed`) and its values (TOML literals); repeat for a grid.
         #[arg(long, required = true, value_name = "KEY=V1,V2,...")]
         vary: Vec<String>,
-        /// Steps per run [default: the scene's run.steps].
+        /// Steps per run [default: the scene's run.steps or run.duration].
         #[arg(long)]
         steps: Option<u64>,
         /// Runs at once [default: the machine's cores].
@@ -107,7 +107,7 @@ struct ViewArgs {
     /// Write a PNG here after the steps instead of opening a window.
     #[arg(long, value_name = "PNG")]
     screenshot: Option<PathBuf>,
-    /// Steps before the screenshot [default: the scene's run.steps].
+    /// Steps before the screenshot [default: the scene's run.steps or run.duration].
     #[arg(long, requires = "screenshot")]
     steps: Option<u64>,
     /// Image or window width in pixels [default: 800 for a screenshot, 1024 for a
@@ -348,13 +348,16 @@ fn run(cli: Cli) -> Result<()> {
                 resume: checkpoint,
                 scene_text: Some(text),
             };
-            let total = steps.unwrap_or(scene.run.steps);
-            let bar = ProgressBar::new(total);
+            // The run's length is known once dt is (run.duration with dt = "auto").
+            let bar = ProgressBar::new(steps.unwrap_or(scene.run.steps));
             bar.set_style(
                 ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {per_sec}  eta {eta}")
                     .context("progress bar template")?,
             );
-            let summary = run_scene(&scene, &options, |done, _| bar.set_position(done));
+            let summary = run_scene(&scene, &options, |done, total| {
+                bar.set_length(total);
+                bar.set_position(done);
+            });
             bar.finish_and_clear();
             // The needle force plots, from needle_force.csv, however the run ended (a run
             // that failed before writing anything leaves an earlier run's CSV, and so its
@@ -445,7 +448,6 @@ fn view(args: ViewArgs) -> Result<()> {
     };
     needlesim_view::render::check_size(w, h, needlesim_view::MAX_SIZE)?;
     let (scene, stem) = load(&scene_path)?;
-    let default_steps = scene.run.steps;
     // On the GPU backend the picture is drawn on the simulation's own device: the device
     // is made for the scene's largest buffer (the renderer's, or the window's adapter).
     let on_gpu = threads.is_none() && backend.unwrap_or(scene.backend) == BackendChoice::Gpu;
@@ -476,7 +478,10 @@ fn view(args: ViewArgs) -> Result<()> {
                 }
                 None => (needlesim_view::Renderer::headless()?, build(None)?),
             };
-            let n = steps.unwrap_or(default_steps);
+            let n = match steps {
+                Some(n) => n,
+                None => scene.run.steps_at(sim.dt())?,
+            };
             sim.step_n(n)
                 .with_context(|| format!("stepping scene `{stem}` ({n} steps)"))?;
             let frame = needlesim_view::Frame::gather(&mut sim)?;

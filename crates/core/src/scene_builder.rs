@@ -249,9 +249,17 @@ impl SceneBuilder {
         self
     }
 
-    /// `run.steps` (default 1000).
+    /// `run.steps` (default 1000); clears `run.duration`.
     pub fn steps(mut self, steps: u64) -> Self {
         self.run.steps = steps;
+        self.run.duration = None;
+        self
+    }
+
+    /// `run.duration`, simulated seconds to run instead of `run.steps`
+    /// ([`crate::scene::RunSettings::steps_at`]).
+    pub fn duration(mut self, seconds: f64) -> Self {
+        self.run.duration = Some(seconds);
         self
     }
 
@@ -1044,6 +1052,19 @@ mod tests {
                 format!("{CUBE}{deb}[run]\noutput_every = 0\n"),
                 "run.output_every",
             ),
+            (
+                cube().material(Material::debunne(1e4, 0.3)).duration(-1.0),
+                format!("{CUBE}{deb}[run]\nduration = -1.0\n"),
+                "run.duration",
+            ),
+            (
+                cube()
+                    .material(Material::debunne(1e4, 0.3))
+                    .dt(1e-6)
+                    .duration(1e9),
+                format!("{CUBE}{deb}[physics]\ndt = 1e-6\n[run]\nduration = 1e9\n"),
+                "run.duration",
+            ),
         ];
         for (builder, text, key) in cases {
             let built = builder.build().unwrap_err();
@@ -1057,6 +1078,37 @@ mod tests {
             }
             assert_eq!(built.to_string(), parsed.to_string());
         }
+    }
+
+    /// `run.duration` runs `ceil(duration / dt)` steps (a whole quotient stays whole even
+    /// with dt rounded to f32, as the tissue holds it); giving both `steps` and `duration`
+    /// is an error naming the table.
+    #[test]
+    fn run_duration_counts_steps_from_the_time_step() {
+        let deb =
+            "[material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\n";
+        let text = format!("{CUBE}{deb}[run]\nduration = 2.0\n");
+        let scene = Scene::from_toml_str(&text, Path::new(".")).unwrap();
+        assert_eq!(scene.run.duration, Some(2.0));
+        assert_eq!(scene.run.steps_at(1e-3).unwrap(), 2000);
+        assert_eq!(scene.run.steps_at(1e-3f32 as f64).unwrap(), 2000);
+        assert_eq!(scene.run.steps_at(3e-3).unwrap(), 667);
+        assert_eq!(scene.run.steps_at(0.7).unwrap(), 3);
+        assert!(scene.run.steps_at(0.0).is_err());
+        // Without duration, the steps.
+        let plain = Scene::from_toml_str(&format!("{CUBE}{deb}[run]\nsteps = 7\n"), Path::new("."));
+        assert_eq!(plain.unwrap().run.steps_at(1e-3).unwrap(), 7);
+        let both = format!("{CUBE}{deb}[run]\nsteps = 10\nduration = 2.0\n");
+        let e = Scene::from_toml_str(&both, Path::new("."))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`steps` or `duration`, not both"), "{e}");
+        let built = cube()
+            .material(Material::debunne(1e4, 0.3))
+            .duration(0.5)
+            .build()
+            .unwrap();
+        assert_eq!(built.run.steps_at(1e-3).unwrap(), 500);
     }
 
     /// What the types cannot rule out: a missing geometry or material, an empty component

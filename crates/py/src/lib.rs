@@ -138,6 +138,8 @@ struct PySimulation {
     masses: Vec<f64>,
     /// The scene as TOML (checkpoints carry it).
     scene: SceneText,
+    /// Steps the scene's `[run]` asks for at the simulation's time step.
+    run_steps: u64,
 }
 
 impl PySimulation {
@@ -158,12 +160,14 @@ impl PySimulation {
             None => prep.start(b),
         }
         .map_err(sim_error)?;
+        let run_steps = parsed.run.steps_at(sim.dt()).map_err(value_error)?;
         Ok(PySimulation {
             sim: Arc::new(Mutex::new(sim)),
             busy: Arc::default(),
             warnings: warning.into_iter().collect(),
             masses,
             scene,
+            run_steps,
         })
     }
 
@@ -320,6 +324,13 @@ impl PySimulation {
             s.check().map_err(|e| e.to_string())
         })
         .map_err(PyRuntimeError::new_err)
+    }
+
+    /// Steps the scene's `[run]` table asks for: `run.steps`, or `ceil(run.duration / dt)`
+    /// at this simulation's time step (so `sim.step(sim.run_steps)` runs the scene).
+    #[getter]
+    fn run_steps(&self) -> u64 {
+        self.run_steps
     }
 
     /// Positions of the active nodes, shape (active_nodes, 3), float64 copy, metres.

@@ -42,6 +42,22 @@ def test_dict_and_toml_scenes_give_identical_results():
     assert fa["axial"] == fb["axial"] and np.array_equal(fa["total"], fb["total"])
 
 
+def test_run_duration_gives_the_steps_at_the_time_step():
+    with open(SAG, "rb") as f:
+        scene = tomllib.load(f)
+    scene.setdefault("run", {}).pop("steps", None)
+    scene["run"]["duration"] = 0.25
+    sim = needlesim.Simulation.from_dict(scene, threads=1)
+    # 0.25 s at the scene's dt = 1e-3 s: 250 steps, although dt is held as the f32
+    # 0.0010000000475 (the quotient 249.99998 is whole within 1e-6).
+    assert sim.run_steps == 250
+    sim.step(sim.run_steps)
+    assert 0.25 - 1e-9 <= sim.time < 0.25 + sim.dt
+    scene["run"]["steps"] = 10
+    with pytest.raises(ValueError, match="not both"):
+        needlesim.Simulation.from_dict(scene)
+
+
 def test_bad_scenes_raise_value_error_naming_the_key():
     with open(SAG, "rb") as f:
         scene = tomllib.load(f)

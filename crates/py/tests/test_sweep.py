@@ -153,6 +153,20 @@ def test_overrides_and_grids_name_the_bad_key():
         needlesim.sweep(s, [{}], "serial", steps=10, duration=1.0, base_dir=ROOT / "scenes")
 
 
+def test_a_scene_duration_sets_each_variants_steps():
+    """`run.duration` in the scene: each variant runs ceil(duration / its dt) steps, so
+    two moduli of the `dt = "auto"` phantom run the same simulated time."""
+    s = scene(PHANTOM)
+    s["run"].pop("steps", None)
+    s["run"]["duration"] = 0.05
+    res = needlesim.sweep(s, needlesim.grid({"material.young_modulus": [1e4, 4e4]}),
+                          "serial", base_dir=ROOT / "scenes")
+    assert res.summary["ok"].all(), res.summary["error"].tolist()
+    steps = res.summary["steps"].to_numpy()
+    assert steps[1] > steps[0]  # the stiffer variant has the smaller dt
+    assert np.allclose(res.summary["time_s"], 0.05, rtol=0, atol=0.05 / steps.min())
+
+
 def synthetic_curve(truth, seed):
     """The phantom's force against depth at `truth`, every 0.1 mm to 35 mm, with 0.02 N
     of Gaussian noise (a load cell's noise on a bench-top insertion)."""

@@ -77,9 +77,13 @@ fn sim_for(text: &str, base: &Path, seconds: Option<f64>) -> Result<Simulation, 
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
         .map_err(needlesim::runner::RunError::from)?;
     let mut sim = prep.start(Box::new(b))?;
+    let all = scene
+        .run
+        .steps_at(sim.dt())
+        .map_err(SimulationError::from)?;
     let steps = match seconds {
-        Some(t) => scene.run.steps.min((t / sim.dt()).ceil() as u64),
-        None => scene.run.steps,
+        Some(t) => all.min((t / sim.dt()).ceil() as u64),
+        None => all,
     };
     sim.step_n(steps)?;
     Ok(sim)

@@ -109,6 +109,9 @@ class Simulation:
     @property
     def dt(self) -> float: ...
     @property
+    def run_steps(self) -> int:
+        """Steps the scene's [run] asks for: run.steps, or ceil(run.duration / dt)."""
+    @property
     def backend(self) -> str:
         """The backend in use, e.g. "cpu (1 thread)" or "gpu (<adapter>)"."""
     @property

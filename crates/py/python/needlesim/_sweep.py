@@ -157,10 +157,11 @@ def sweep(
     client: a ``distributed.Client``, a scheduler address, ``None`` (the current default
         client, else a LocalCluster started for this call and closed after it), or
         ``"serial"`` (this process, no Dask).
-    steps: steps per run (default: the scene's ``run.steps``).
+    steps: steps per run (default: the scene's, ``Simulation.run_steps``).
     duration: simulated seconds per run instead of ``steps`` (``ceil(duration / dt)``
-        steps): use it when the variants change a ``dt = "auto"`` scene's time step
-        (through the modulus, the density or the spacing).
+        steps, as the scene key ``run.duration``): use it when the variants change a
+        ``dt = "auto"`` scene's time step (through the modulus, the density or the
+        spacing).
     nodes, every: node indices whose positions are recorded every ``every`` steps
         (default: ``run.output_every``, else 100), step 0 included, in the ``nodes`` table.
     backend, threads: as in ``Simulation.from_dict``; the default is one CPU thread.
@@ -207,9 +208,6 @@ def sweep(
         try:
             s = apply_overrides(scene_dict, v)
             run = s.get("run", {}) if isinstance(s.get("run"), dict) else {}
-            n = steps if steps is not None else run.get("steps")
-            if duration is None and (not isinstance(n, int) or n < 1):
-                raise ValueError("the scene has no `run.steps`: give steps= or duration=")
             k = every if every is not None else run.get("output_every", 100)
             s, shipped = _ship_files(s, root, files, cache)
             tasks.append(
@@ -219,7 +217,7 @@ def sweep(
                         "scene": s,
                         "files": shipped,
                         "base_dir": str(root),
-                        "steps": None if duration is not None else int(n),
+                        "steps": steps,
                         "duration": duration,
                         "nodes": nodes,
                         "every": int(k),
@@ -305,11 +303,24 @@ def run_variant(task: Mapping[str, Any]) -> Dict[str, Any]:
     return out
 
 
+def steps_at(duration: float, dt: float) -> int:
+    """Steps that run ``duration`` s at time step ``dt``: ``ceil(duration / dt)``, a
+    quotient within 1e-6 of a whole number counting as that number (the rule of the scene
+    key ``run.duration``)."""
+    n = duration / dt
+    whole = round(n)
+    if abs(n - whole) <= 1e-6 * max(whole, 1):
+        return max(1, int(whole))
+    return int(np.ceil(n))
+
+
 def _run(sim: Simulation, task: Mapping[str, Any]) -> Dict[str, Any]:
     nodes = task["nodes"]
     steps, every = task["steps"], task["every"]
-    if steps is None:
-        steps = max(1, int(np.ceil(task["duration"] / sim.dt - 1e-9)))
+    if steps is None and task["duration"] is not None:
+        steps = steps_at(task["duration"], sim.dt)
+    elif steps is None:
+        steps = sim.run_steps
     rest = sim.positions
     if nodes is not None and nodes and max(nodes) >= len(rest):
         raise ValueError(f"nodes: index {max(nodes)} past the {len(rest)} nodes")
