@@ -284,6 +284,20 @@ fn view_window_draws_frames_on_the_simulations_device() {
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("no simulated time in {stdout}"));
     assert!(t > 0.0, "{stdout}");
+    // On the CPU backend the window has a device of its own.
+    let o = std::process::Command::new("timeout")
+        .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_needlesim"))
+        .args(["view", "--threads", "1", "--frames", "3", "--width", "160"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}");
+    assert!(stdout.contains("window  3 frames"), "{stdout}");
+    assert!(
+        stdout.contains("(simulation on the CPU or a device of its own)"),
+        "{stdout}"
+    );
 }
 
 /// `needlesim sweep` runs the grid of the --vary values on two threads: every variant's
