@@ -252,25 +252,30 @@ fn view_window_draws_frames_on_the_simulations_device() {
         return;
     }
     // `timeout` ends a window that would never close (the test fails on its status).
-    let o = std::process::Command::new("timeout")
-        .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_needlesim"))
-        .args([
-            "view",
-            "--backend",
-            "gpu",
-            "--frames",
-            "8",
-            "--width",
-            "320",
-            "--height",
-            "240",
-        ])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{stdout}\n{stderr}");
+    let window = |args: &[&str]| -> String {
+        let o = std::process::Command::new("timeout")
+            .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1024x768x24"])
+            .arg(env!("CARGO_BIN_EXE_needlesim"))
+            .arg("view")
+            .args(args)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stdout}\n{stderr}");
+        stdout
+    };
+    let gpu = [
+        "--backend",
+        "gpu",
+        "--frames",
+        "8",
+        "--width",
+        "320",
+        "--height",
+        "240",
+    ];
+    let stdout = window(&gpu);
     assert!(stdout.contains("window  8 frames"), "{stdout}");
     assert!(
         stdout.contains("(simulation on the same device)"),
@@ -285,14 +290,7 @@ fn view_window_draws_frames_on_the_simulations_device() {
         .unwrap_or_else(|| panic!("no simulated time in {stdout}"));
     assert!(t > 0.0, "{stdout}");
     // On the CPU backend the window has a device of its own.
-    let o = std::process::Command::new("timeout")
-        .args(["300", "xvfb-run", "-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_needlesim"))
-        .args(["view", "--threads", "1", "--frames", "3", "--width", "160"])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}");
+    let stdout = window(&["--threads", "1", "--frames", "3", "--width", "160"]);
     assert!(stdout.contains("window  3 frames"), "{stdout}");
     assert!(
         stdout.contains("(simulation on the CPU or a device of its own)"),
