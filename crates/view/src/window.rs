@@ -62,8 +62,8 @@ pub struct WindowOptions {
     /// with the kernels' limits for storage bindings of `bytes` (the scene's
     /// `needlesim_gpu::largest_buffer`) and the build closure receives its context.
     pub share_gpu: Option<u64>,
-    /// Close the window after this many drawn frames (smoke tests, recordings); `None`
-    /// runs until closed.
+    /// Close the window after this many drawn frames (smoke tests); `None` runs until
+    /// closed.
     pub frames: Option<u64>,
 }
 
