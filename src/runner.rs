@@ -8,7 +8,7 @@ use needlesim_core::{
     Backend, CpuBackend, NodeField, Scene, SceneError, SimError, Threading, Tissue,
 };
 use needlesim_gpu::{GpuBackend, GpuContext};
-use needlesim_needle::{NeedleSample, Simulation, SimulationError};
+use needlesim_needle::{NeedleSample, Prepared, Simulation, SimulationError};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -165,11 +165,10 @@ pub fn start_simulation(
     Ok((prep.start(b)?, warning))
 }
 
-/// The scene's simulation on the GPU backend on the device of `ctx` (one the caller
-/// shares: a window's, a renderer's). Make `ctx` with storage bindings of at least
-/// [`needlesim_gpu::largest_buffer`] of the prepared tissue.
-pub fn start_simulation_on(scene: &Scene, ctx: &GpuContext) -> Result<Simulation, RunError> {
-    let prep = Simulation::prepare(scene)?;
+/// The prepared simulation started on the GPU backend on the device of `ctx` (one the
+/// caller shares: a window's, a renderer's). Make `ctx` with storage bindings of at least
+/// [`needlesim_gpu::largest_buffer`] of `prep.tissue`.
+pub fn start_simulation_on(prep: Prepared, ctx: &GpuContext) -> Result<Simulation, RunError> {
     let backend = GpuBackend::with_context(ctx.clone(), &prep.tissue)?;
     Ok(prep.start(Box::new(backend))?)
 }

@@ -451,16 +451,23 @@ fn view(args: ViewArgs) -> Result<()> {
     // On the GPU backend the picture is drawn on the simulation's own device: the device
     // is made for the scene's largest buffer (the renderer's, or the window's adapter).
     let on_gpu = threads.is_none() && backend.unwrap_or(scene.backend) == BackendChoice::Gpu;
-    let largest = match on_gpu {
-        true => Some(needlesim::gpu::largest_buffer(
-            &Simulation::prepare(&scene)?.tissue,
-        )),
+    let mut prepared = match on_gpu {
+        true => Some(Simulation::prepare(&scene)?),
         false => None,
     };
+    let largest = prepared
+        .as_ref()
+        .map(|p| needlesim::gpu::largest_buffer(&p.tissue));
     let shared = scene.clone();
-    let build = move |ctx: Option<&GpuContext>| -> Result<Simulation> {
+    let mut build = move |ctx: Option<&GpuContext>| -> Result<Simulation> {
         if let Some(ctx) = ctx {
-            return Ok(needlesim::start_simulation_on(&shared, ctx)?);
+            // The first build starts the tissue prepared for the buffer size; a reset
+            // prepares it anew.
+            let prep = match prepared.take() {
+                Some(p) => p,
+                None => Simulation::prepare(&shared)?,
+            };
+            return Ok(needlesim::start_simulation_on(prep, ctx)?);
         }
         let (sim, warning) = needlesim::start_simulation(&shared, backend, threads)?;
         if let Some(w) = warning {
