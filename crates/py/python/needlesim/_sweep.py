@@ -209,6 +209,10 @@ def sweep(
             s = apply_overrides(scene_dict, v)
             run = s.get("run", {}) if isinstance(s.get("run"), dict) else {}
             k = every if every is not None else run.get("output_every", 100)
+            if duration is not None:
+                # The scene key does the counting (Simulation.run_steps, as in Rust).
+                run = {key: x for key, x in run.items() if key != "steps"}
+                s = {**s, "run": {**run, "duration": float(duration)}}
             s, shipped = _ship_files(s, root, files, cache)
             tasks.append(
                 (
@@ -218,7 +222,6 @@ def sweep(
                         "files": shipped,
                         "base_dir": str(root),
                         "steps": steps,
-                        "duration": duration,
                         "nodes": nodes,
                         "every": int(k),
                         "backend": backend,
@@ -303,23 +306,10 @@ def run_variant(task: Mapping[str, Any]) -> Dict[str, Any]:
     return out
 
 
-def steps_at(duration: float, dt: float) -> int:
-    """Steps that run ``duration`` s at time step ``dt``: ``ceil(duration / dt)``, a
-    quotient within 1e-6 of a whole number counting as that number (the rule of the scene
-    key ``run.duration``)."""
-    n = duration / dt
-    whole = round(n)
-    if abs(n - whole) <= 1e-6 * max(whole, 1):
-        return max(1, int(whole))
-    return int(np.ceil(n))
-
-
 def _run(sim: Simulation, task: Mapping[str, Any]) -> Dict[str, Any]:
     nodes = task["nodes"]
     steps, every = task["steps"], task["every"]
-    if steps is None and task["duration"] is not None:
-        steps = steps_at(task["duration"], sim.dt)
-    elif steps is None:
+    if steps is None:
         steps = sim.run_steps
     rest = sim.positions
     if nodes is not None and nodes and max(nodes) >= len(rest):
