@@ -175,7 +175,7 @@ impl Boundary {
 
 /// Writes `data[k]` to node `nodes[k]` (sorted), one transfer per run of consecutive
 /// indices.
-fn write_scattered(
+pub fn write_scattered(
     b: &mut dyn Backend,
     field: NodeField,
     nodes: &[u32],

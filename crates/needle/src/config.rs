@@ -11,6 +11,10 @@
 //! cutting = 0.5                  # N, at the tip while it advances into uncut tissue
 //! thresholds = { puncture = 80.0, release = 95.0 }   # cone angle, degrees
 //! puncture_force = 2.0           # N: puncture by force instead of the cone angle
+//! contact_radius = 0.003         # m, the surface that carries the tip's load before
+//!                                # puncture (default: the needle radius)
+//! tear_length = 0.00127          # m of advance over which a membrane that gave lets go
+//!                                # of its load (default: the needle's diameter)
 //! friction = { coefficient = 0.3, grip = 40.0 }      # per unit length (default model)
 //! # friction = { model = "paper", static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
 //!
@@ -63,6 +67,16 @@ pub struct NeedleConfig {
     /// surface on the tip exceeds this many N (instead of the cone angle rule).
     #[serde(default)]
     pub puncture_force: Option<f64>,
+    /// Radius of the surface that carries the tip's load before puncture, m (per-length
+    /// model, [`crate::sheath`]): the needle's own radius (the default) on a bare surface,
+    /// more where a capsule or skin under tension spreads the load. With the tissue's
+    /// modulus it sets the dent: a rigid flat punch of this radius on a half-space.
+    #[serde(default)]
+    pub contact_radius: Option<f64>,
+    /// Advance of the crack front over which a membrane that gave releases its load, m
+    /// (per-length model; default: the needle's diameter, the hole opening to the shaft).
+    #[serde(default)]
+    pub tear_length: Option<f64>,
     /// Stick-slip friction (read from the `friction` table by [`FrictionModel::from_value`]).
     #[serde(skip)]
     pub friction: FrictionModel,
@@ -103,6 +117,9 @@ pub struct RegionNeedle {
     pub cutting: f64,
     /// The region's membrane.
     pub membrane: Membrane,
+    /// Radius of the surface that carries the tip's load while it dents the region's
+    /// membrane, m (`contact_radius`, by default the `[needle]` table's).
+    pub contact_radius: f64,
 }
 
 #[derive(Deserialize)]
@@ -114,6 +131,8 @@ struct RegionNeedleKeys {
     impenetrable: bool,
     #[serde(default)]
     cutting: Option<f64>,
+    #[serde(default)]
+    contact_radius: Option<f64>,
     #[serde(default)]
     friction: Option<toml::Value>,
 }
@@ -191,6 +210,19 @@ impl NeedleConfig {
                 ));
             }
         }
+        for (key, v) in [
+            ("needle.contact_radius", self.contact_radius),
+            ("needle.tear_length", self.tear_length),
+        ] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(SceneError::invalid(
+                        key,
+                        format!("must be a finite number > 0 (m), got {v}"),
+                    ));
+                }
+            }
+        }
         if self.cutting > 0.0 && matches!(self.friction, FrictionModel::Paper(_)) {
             return Err(SceneError::invalid(
                 "needle.cutting",
@@ -210,6 +242,16 @@ impl NeedleConfig {
         Ok(())
     }
 
+    /// Contact radius before puncture (m): `contact_radius`, or the needle's radius.
+    pub fn contact_radius(&self) -> f64 {
+        self.contact_radius.unwrap_or(self.radius)
+    }
+
+    /// Tear length (m): `tear_length`, or the needle's diameter.
+    pub fn tear_length(&self) -> f64 {
+        self.tear_length.unwrap_or(2.0 * self.radius)
+    }
+
     /// The needle's parameters in region `name` from its `needle` table (`None`: the
     /// `[needle]` table's, with no membrane). Errors name `region[name].needle.<key>`.
     pub fn region(
@@ -222,6 +264,7 @@ impl NeedleConfig {
             friction: self.friction,
             cutting: self.cutting,
             membrane: Membrane::None,
+            contact_radius: self.contact_radius(),
         };
         let Some(table) = table else {
             return Ok(out);
@@ -252,6 +295,15 @@ impl NeedleConfig {
                     "a region's friction must be the per-length model",
                 ));
             }
+        }
+        if let Some(r) = k.contact_radius {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(SceneError::invalid(
+                    format!("{key}.contact_radius"),
+                    format!("must be a finite number > 0 (m), got {r}"),
+                ));
+            }
+            out.contact_radius = r;
         }
         if let Some(c) = k.cutting {
             if !(c.is_finite() && c >= 0.0) {

@@ -101,7 +101,23 @@ pub struct PerLengthFriction {
     /// Viscous friction per unit length and unit relative speed, N s/m^2 (default 0).
     #[serde(default)]
     pub viscous: f64,
+    /// Shear stiffness per unit length of the tissue sheath around the shaft, N/m^2: how
+    /// much relative motion it takes the friction to build up (default: from the
+    /// tissue's modulus, `2 pi G / ln(h / 2a)`, [`crate::sheath`]).
+    #[serde(default)]
+    pub shear_stiffness: Option<f64>,
+    /// Shear viscosity of the tissue in the sheath, Pa s (default
+    /// [`DEFAULT_SHEATH_VISCOSITY`]): a Kelvin-Voigt dashpot beside the sheath's
+    /// stiffness, `2 pi eta / ln(h / 2a)` per unit length, that damps the needle nodes'
+    /// motion against the needle while the sheath holds; it carries nothing in steady
+    /// sliding ([`crate::sheath`]).
+    #[serde(default)]
+    pub sheath_viscosity: Option<f64>,
 }
+
+/// Default shear viscosity of the sheath's tissue, Pa s (module docs of
+/// [`crate::sheath`]).
+pub const DEFAULT_SHEATH_VISCOSITY: f64 = 2.0;
 
 fn default_coefficient() -> f64 {
     0.3
@@ -114,6 +130,8 @@ impl Default for PerLengthFriction {
             static_coefficient: None,
             grip: None,
             viscous: 0.0,
+            shear_stiffness: None,
+            sheath_viscosity: None,
         }
     }
 }
@@ -129,6 +147,17 @@ impl PerLengthFriction {
         let mut values = vec![("coefficient", self.coefficient), ("viscous", self.viscous)];
         if let Some(g) = self.grip {
             values.push(("grip", g));
+        }
+        if let Some(e) = self.sheath_viscosity {
+            values.push(("sheath_viscosity", e));
+        }
+        if let Some(k) = self.shear_stiffness {
+            if !(k.is_finite() && k > 0.0) {
+                return Err((
+                    "needle.friction.shear_stiffness".into(),
+                    format!("must be a finite number > 0 (N/m^2), got {k}"),
+                ));
+            }
         }
         if let Some(s) = self.static_coefficient {
             values.push(("static_coefficient", s));

@@ -4,7 +4,9 @@
 //! scripts of keyframes ([`script`]), the scene's `[needle]` table ([`config`]), the
 //! segment-against-surface query with a grid broad phase ([`surface_query`]), the puncture
 //! states, the 1-to-3 triangle split and the cone angle ([`puncture`]), node addition and
-//! exact removal ([`node_editor`]), stick-slip friction ([`friction`]), and the
+//! exact removal ([`node_editor`]), stick-slip friction ([`friction`]) and the sub-grid
+//! sheath that carries it, the cutting force and the contact before puncture
+//! ([`sheath`]), and the
 //! [`Simulation`] that drives any [`needlesim_core::Backend`] through them and records the
 //! needle force of every step ([`simulation`]), and checkpoints of its whole state
 //! ([`checkpoint`]).
@@ -35,6 +37,7 @@ pub mod node_editor;
 mod nodes;
 pub mod puncture;
 pub mod script;
+pub mod sheath;
 pub mod simulation;
 mod splits;
 mod state;

@@ -1,5 +1,7 @@
 //! The rigid straight needle: base `b`, unit direction `t` (base to tip), length `L`, tip
-//! `b + L t`.
+//! `b + L t`, and its roll: the angle it has turned about its own axis (spin), which moves
+//! the shaft's surface past the tissue around it (the friction sees it,
+//! [`crate::sheath`]) but not the shaft's line.
 
 use glam::DVec3;
 use thiserror::Error;
@@ -21,6 +23,9 @@ pub enum NeedleError {
     /// The length is not positive.
     #[error("needle length must be a finite number > 0, got {0}")]
     BadLength(f64),
+    /// The roll angle is not finite.
+    #[error("needle roll must be a finite angle in radians, got {0}")]
+    BadRoll(f64),
 }
 
 /// A rigid straight needle.
@@ -29,6 +34,9 @@ pub struct Needle {
     base: DVec3,
     direction: DVec3,
     length: f64,
+    /// Angle turned about its own axis since the start, radians (right-handed about the
+    /// direction).
+    roll: f64,
 }
 
 fn finite(what: &'static str, v: [f64; 3]) -> Result<DVec3, NeedleError> {
@@ -64,6 +72,7 @@ impl Needle {
             base,
             direction: DVec3::from_array(unit(direction)?),
             length,
+            roll: 0.0,
         })
     }
 
@@ -87,7 +96,22 @@ impl Needle {
         (self.base + self.direction * self.length).to_array()
     }
 
-    /// Moves the needle to a new pose (same length).
+    /// Angle the needle has turned about its own axis, radians (right-handed about the
+    /// direction); 0 at the start pose.
+    pub fn roll(&self) -> f64 {
+        self.roll
+    }
+
+    /// Sets the roll angle (radians), leaving the shaft's line where it is.
+    pub fn set_roll(&mut self, roll: f64) -> Result<(), NeedleError> {
+        if !roll.is_finite() {
+            return Err(NeedleError::BadRoll(roll));
+        }
+        self.roll = roll;
+        Ok(())
+    }
+
+    /// Moves the needle to a new pose (same length and roll).
     pub fn set_pose(&mut self, base: [f64; 3], direction: [f64; 3]) -> Result<(), NeedleError> {
         let base = finite("base", base)?;
         self.direction = DVec3::from_array(unit(direction)?);

@@ -27,11 +27,23 @@ pub struct NeedleNode {
     pub friction: FrictionState,
     /// Axial coordinate from the needle base while sticking, m.
     pub s: f64,
-    /// Axial force the needle exerted on the node in the last step (friction, and
-    /// cutting at the crack front), N, positive along the needle direction.
+    /// Axial force the needle exerted on the node in the last step, N, positive along the
+    /// needle direction: its friction (with the paper's model, also the cutting force at
+    /// the crack front; with the per-length model the cutting force is the front
+    /// element's, [`crate::Simulation::front_force`]).
     pub axial: f64,
-    /// The static limit of that force forward in the last step (per-length model), N.
+    /// The friction limit in the last step (per-length model: the Coulomb cap of the
+    /// node's sheath, [`crate::sheath`]), N.
     pub limit: f64,
+    /// Circumferential friction force of the node's sheath in the last step (per-length
+    /// model), N, positive in the sense the needle spins (right-handed about its
+    /// direction). It turns the needle, not the node.
+    #[serde(default)]
+    pub circumferential: f64,
+    /// Axial coordinate of the node from the needle base at the end of the last step, m
+    /// (per-length model: the sheath's relative motion is measured from it).
+    #[serde(default)]
+    pub sigma: f64,
     /// The tissue region the node was added in (that of its nearest neighbour at rest);
     /// its friction is that region's.
     #[serde(default)]
@@ -48,6 +60,11 @@ pub struct NeedleForce {
     pub axial: f64,
     /// Magnitude of the component normal to the shaft, N.
     pub lateral: f64,
+    /// Torque of the tissue about the needle's own axis, N m, positive when it resists a
+    /// right-handed spin (the circumferential friction of the sheath; 0 with the paper's
+    /// model).
+    #[serde(default)]
+    pub torque: f64,
 }
 
 /// One step of the needle's record.

@@ -1,6 +1,8 @@
 //! Pose scripts: a needle's pose as a function of time, from a start pose and a list of
 //! keyframes played one after the other (move at a speed, pause, rotate about an axis
-//! through a point, extract along the shaft).
+//! through a point, extract along the shaft, spin about the needle's own axis). `move` and
+//! `extract` may spin the needle at the same time (`spin`, degrees per second): clinicians
+//! turn a needle while pushing it to lower the insertion force.
 //!
 //! ```toml
 //! [[keyframe]]
@@ -14,6 +16,10 @@
 //! point = [0.0, 0.05, 0.05]
 //! rate = 5.0          # degrees per second
 //! duration = 5.0
+//! [[keyframe]]
+//! action = "spin"     # about the needle's own axis, in place
+//! rate = 360.0        # degrees per second (one revolution per second)
+//! duration = 1.0
 //! ```
 
 use crate::needle::{unit, Needle, NeedleError};
@@ -33,6 +39,10 @@ pub enum Keyframe {
         speed: f64,
         /// Seconds.
         duration: f64,
+        /// Spin about the needle's own axis at the same time, degrees per second
+        /// (right-handed about the needle direction; default 0).
+        #[serde(default)]
+        spin: f64,
     },
     /// Hold still for `duration` s.
     Pause {
@@ -55,6 +65,17 @@ pub enum Keyframe {
     Extract {
         /// Speed in m/s (>= 0).
         speed: f64,
+        /// Seconds.
+        duration: f64,
+        /// Spin about the needle's own axis at the same time, degrees per second (default 0).
+        #[serde(default)]
+        spin: f64,
+    },
+    /// Spin in place about the needle's own axis at `rate` degrees per second for
+    /// `duration` s (right-handed about the needle direction).
+    Spin {
+        /// Degrees per second.
+        rate: f64,
         /// Seconds.
         duration: f64,
     },
@@ -86,29 +107,41 @@ fn advance(n: &Needle, k: &Keyframe, tau: f64) -> Result<Needle, NeedleError> {
         DVec3::from_array(n.direction()),
     );
     let mut out = *n;
+    // Turn about the needle's own axis over the keyframe so far, radians.
+    let mut spun = 0.0;
     match *k {
         Keyframe::Move {
-            direction, speed, ..
+            direction,
+            speed,
+            spin,
+            ..
         } => {
             let d = DVec3::from_array(unit(direction)?);
             out.set_pose((b + d * (speed * tau)).to_array(), t.to_array())?;
+            spun = spin.to_radians() * tau;
         }
         Keyframe::Pause { .. } => {}
         Keyframe::Rotate {
             axis, point, rate, ..
         } => {
-            let turn =
-                DQuat::from_axis_angle(DVec3::from_array(unit(axis)?), rate.to_radians() * tau);
+            let axis = DVec3::from_array(unit(axis)?);
+            let turn = DQuat::from_axis_angle(axis, rate.to_radians() * tau);
             let point = DVec3::from_array(point);
             out.set_pose(
                 (point + turn * (b - point)).to_array(),
                 (turn * t).to_array(),
             )?;
+            // The part of the turn about the needle's own axis (constant: the direction
+            // turns about `axis`, so its component along `axis` stays).
+            spun = rate.to_radians() * tau * axis.dot(t);
         }
-        Keyframe::Extract { speed, .. } => {
+        Keyframe::Extract { speed, spin, .. } => {
             out.set_pose((b - t * (speed * tau)).to_array(), t.to_array())?;
+            spun = spin.to_radians() * tau;
         }
+        Keyframe::Spin { rate, .. } => spun = rate.to_radians() * tau,
     }
+    out.set_roll(n.roll() + spun)?;
     Ok(out)
 }
 
@@ -117,7 +150,8 @@ fn duration(k: &Keyframe) -> f64 {
         Keyframe::Move { duration, .. }
         | Keyframe::Pause { duration }
         | Keyframe::Rotate { duration, .. }
-        | Keyframe::Extract { duration, .. } => duration,
+        | Keyframe::Extract { duration, .. }
+        | Keyframe::Spin { duration, .. } => duration,
     }
 }
 
@@ -142,6 +176,14 @@ impl PoseScript {
                     return Err(err(format!(
                         "speed must be a finite number >= 0, got {speed}"
                     )));
+                }
+                Keyframe::Move { spin, .. } | Keyframe::Extract { spin, .. }
+                    if !spin.is_finite() =>
+                {
+                    return Err(err(format!("spin must be finite, got {spin}")));
+                }
+                Keyframe::Spin { rate, .. } if !rate.is_finite() => {
+                    return Err(err(format!("rate must be finite, got {rate}")));
                 }
                 Keyframe::Rotate { rate, point, .. }
                     if !(rate.is_finite() && point.iter().all(|x| x.is_finite())) =>
@@ -250,6 +292,7 @@ mod tests {
                     direction: [0.0; 3],
                     speed: 1.0,
                     duration: 1.0,
+                    spin: 0.0,
                 },
             ],
         )
@@ -261,6 +304,7 @@ mod tests {
             vec![Keyframe::Extract {
                 speed: -1.0,
                 duration: 1.0,
+                spin: 0.0,
             }],
         );
         assert!(e.unwrap_err().reason.contains("speed"));

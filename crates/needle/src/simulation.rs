@@ -43,6 +43,7 @@ mod constraint;
 mod insertion;
 mod needle_force;
 mod prepare;
+mod settle;
 mod snapshot;
 
 pub use insertion::MAX_STEP_SPACINGS;
@@ -69,8 +70,16 @@ struct Layer {
     friction: FrictionModel,
     /// Grip of the per-length model, N/m.
     grip: f64,
+    /// Shear stiffness per unit length of the sheath (per-length model), N/m^2.
+    shear_stiffness: f64,
+    /// Viscous coefficient per unit length of the sheath (per-length model), N s/m^2.
+    shear_viscosity: f64,
+    /// Young's modulus (Pa) and Poisson ratio the needle's contacts use.
+    modulus: (f64, f64),
     cutting: f64,
     membrane: Membrane,
+    /// Radius of the surface carrying the tip's load before the membrane gives, m.
+    contact_radius: f64,
 }
 
 /// The needle parameters a step uses, resolved from the scene.
@@ -84,6 +93,10 @@ struct Contact {
     puncture_force: Option<f64>,
     /// Tip travel between two Tip node refreshes, m.
     refresh: f64,
+    /// Needle radius, m.
+    radius: f64,
+    /// Advance over which a membrane that gave releases its load, m.
+    tear_length: f64,
 }
 
 impl Contact {
@@ -113,6 +126,9 @@ pub struct Simulation {
     region_names: Vec<String>,
     /// Inverse mass of a needle node in each region, 1/kg.
     region_inv_mass: Vec<f32>,
+    /// The fewest needle nodes the stack held during this step's edits (the nodes below
+    /// it kept their place and their friction).
+    low_water: usize,
 }
 
 /// What [`Simulation::read_needle`] reads.

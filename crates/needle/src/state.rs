@@ -4,6 +4,7 @@
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NeedleNode, NeedleSample};
 use crate::puncture::PunctureState;
+use crate::sheath::{FrontElement, Patch};
 use crate::splits::SurfaceSplits;
 use needlesim_core::math::Vec4;
 
@@ -62,8 +63,14 @@ pub(crate) struct NeedleState {
     pub entry: Option<[f64; 3]>,
     /// Deepest tip depth past the entry so far (the crack front), m.
     pub cut_depth: f64,
-    /// Axial force of the pinned (Surface or Exit) node on the needle in the last step, N.
+    /// Axial force of the pinned (Surface or Exit) node on the needle in the last step, N
+    /// (per-length model: of the contact patch while Touching the entry).
     pub pinned_axial: f64,
+    /// The tip's element at the crack front (per-length model, [`crate::sheath`]).
+    pub front: FrontElement,
+    /// The contact patch on the entry surface, while Touching and while the entry
+    /// membrane tears (per-length model).
+    pub patch: Option<Patch>,
     /// The region the crack front has cut into (the last membrane punctured); `None`
     /// while the tip is not inside.
     #[serde(default)]
@@ -106,6 +113,8 @@ impl NeedleState {
             entry: None,
             cut_depth: f64::NEG_INFINITY,
             pinned_axial: 0.0,
+            front: FrontElement::default(),
+            patch: None,
             region: None,
             denting: None,
             punctured: Vec::new(),

@@ -1,7 +1,9 @@
-//! Needle node constraints (paper section 5.4): a sticking node, and the pinned Surface or
-//! Exit node while Touching, moves rigidly with the needle (its velocity the needle's at
-//! its axial coordinate); a slipping node is projected onto the shaft and keeps only its
-//! own axial velocity relative to the needle.
+//! Needle node constraints (paper section 5.4): a node held rigidly on the needle (the
+//! pinned Exit node while Touching the far surface; with the paper's friction model also a
+//! sticking node and the pinned Surface node) moves with it, its velocity the needle's at
+//! its axial coordinate; every other needle node is projected onto the shaft and keeps only
+//! its own axial velocity relative to the needle. With the per-length model the axial
+//! motion is the sheath's business ([`crate::sheath`]): no node is held axially.
 
 use super::{at, vec4, xyz, Simulation};
 use crate::friction::FrictionState;
@@ -12,17 +14,23 @@ use glam::DVec3;
 use needlesim_core::{NodeField, SimError};
 
 impl Simulation {
+    /// Whether the per-length friction model's sheath couples the needle nodes axially
+    /// ([`crate::sheath`]); else the paper's model holds sticking nodes rigidly.
+    pub(super) fn sheathed(&self) -> bool {
+        self.contact.per_length().is_some()
+    }
+
     /// Whether node `n` is held rigidly on the needle this step.
     pub(super) fn kinematic(&self, n: &NeedleNode) -> bool {
         self.pinned(n)
-            || n.friction == FrictionState::Stick
-            || (n.role == NodeRole::Tip && self.contact.per_length().is_none())
+            || (!self.sheathed() && (n.friction == FrictionState::Stick || n.role == NodeRole::Tip))
     }
 
-    /// The Surface node while Touching the entry, the Exit node while Touching the far
-    /// surface: pinned to the tip in every direction.
+    /// The Exit node while Touching the far surface, and with the paper's friction model
+    /// the Surface node while Touching the entry: pinned to the tip in every direction.
+    /// (With the per-length model the entry's load goes into the contact patch.)
     pub(super) fn pinned(&self, n: &NeedleNode) -> bool {
-        (n.role == NodeRole::Surface && self.state.phase == Phase::Touching)
+        (n.role == NodeRole::Surface && self.state.phase == Phase::Touching && !self.sheathed())
             || (n.role == NodeRole::Exit && self.state.phase == Phase::ExitTouching)
     }
 

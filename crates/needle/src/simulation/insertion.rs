@@ -28,6 +28,7 @@ use crate::needle::Needle;
 use crate::node_editor::{EditError, Placement};
 use crate::nodes::{NeedleNode, NodeRole};
 use crate::puncture::{mean_cone_angle, TouchingOutcome};
+use crate::sheath::{self, FieldPoint, Patch, Tear};
 use crate::state::Phase;
 use crate::SimulationError;
 use glam::DVec3;
@@ -40,6 +41,17 @@ use needlesim_core::NodeField;
 /// whole body within the Touching phase and nodes were placed past the far surface until
 /// the slots ran out. A haptic pose glitch is usually far larger.
 pub const MAX_STEP_SPACINGS: f64 = 4.0;
+
+/// The shaft's friction before an edit ([`Simulation::reassign_friction`]).
+#[derive(Debug, Default)]
+struct FrictionField {
+    /// Force per unit length (axial, circumferential) of every node in stack order, N/m.
+    per_node: Vec<[f64; 2]>,
+    /// The same at the nodes with a shaft length, sorted along the needle.
+    points: Vec<FieldPoint>,
+    /// Summed forces, N.
+    total: [f64; 2],
+}
 
 /// The next edit of the needle node stack while Inside.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -118,6 +130,8 @@ impl Simulation {
             s,
             axial: 0.0,
             limit: 0.0,
+            circumferential: 0.0,
+            sigma: s,
             region,
         });
         Ok(())
@@ -127,6 +141,7 @@ impl Simulation {
     fn remove(&mut self) -> Result<NeedleNode, EditError> {
         self.editor.remove_last(self.backend.as_mut())?;
         let node = self.state.nodes.pop().ok_or(EditError::NothingToRemove)?;
+        self.low_water = self.low_water.min(self.state.nodes.len());
         if matches!(node.role, NodeRole::Surface | NodeRole::Exit) {
             let editor = &self.editor;
             self.state
@@ -136,6 +151,8 @@ impl Simulation {
                 self.state.region = None;
                 self.state.denting = None;
                 self.state.punctured.clear();
+                self.state.patch = None;
+                self.state.front = Default::default();
                 Phase::Outside
             } else {
                 Phase::Inside
@@ -163,7 +180,79 @@ impl Simulation {
         self.state.surface.split(id, node, |v| {
             editor.rest_position(v as usize).map(|x| x as f64)
         });
+        if role == NodeRole::Surface && self.sheathed() {
+            self.state.patch = Some(self.entry_patch());
+            self.settle(0, now, &[point])?;
+        }
         Ok(())
+    }
+
+    /// The contact patch around the Surface node just added ([`crate::sheath::Patch`]): the surface nodes within `R_p = max(2 h, 1.3 R_c)` of
+    /// it at rest, weighted `(1 - (r / R_p)^2)^2` with the Surface node itself, and the
+    /// stiffness of the sub-grid element that makes the patch as compliant as a rigid
+    /// punch of the contact radius `R_c` on a half-space of the touched region's material.
+    fn entry_patch(&self) -> Patch {
+        let surface_node = self.state.nodes.last().expect("the Surface node");
+        let layer = self.contact.layers[surface_node.region as usize];
+        let (young, nu) = layer.modulus;
+        let rc = layer.contact_radius;
+        let radius = (2.0 * self.spacing).max(1.3 * rc);
+        let n_mesh = self.editor.n_mesh() as u32;
+        let rest = |v: u32| DVec3::from(self.rest_of(v));
+        let centre = rest(surface_node.index);
+        // Surface cells: a third of every rest triangle at each corner.
+        let mut cells: Vec<(u32, f64)> = Vec::new();
+        for tri in self.state.surface.triangles() {
+            let [a, b, c] = tri.map(rest);
+            let third = (b - a).cross(c - a).length() / 6.0;
+            for &v in tri {
+                if v >= n_mesh && v != surface_node.index {
+                    continue;
+                }
+                if v == surface_node.index || rest(v).distance(centre) < radius {
+                    cells.push((v, third));
+                }
+            }
+        }
+        cells.sort_by_key(|c| c.0);
+        let mut nodes: Vec<(u32, f64)> = Vec::new();
+        for (v, a) in cells {
+            match nodes.last_mut() {
+                Some(last) if last.0 == v => last.1 += a,
+                _ => nodes.push((v, a)),
+            }
+        }
+        let raw: Vec<f64> = nodes
+            .iter()
+            .map(|(v, _)| sheath::patch_weight(rest(*v).distance(centre), radius))
+            .collect();
+        let sum: f64 = raw.iter().sum();
+        let x: Vec<DVec3> = nodes.iter().map(|(v, _)| rest(*v)).collect();
+        let w: Vec<f64> = raw.iter().map(|r| r / sum).collect();
+        let area: Vec<f64> = nodes.iter().map(|(_, a)| *a).collect();
+        let punch = sheath::punch_compliance(young, nu, rc);
+        let resolved = sheath::patch_compliance(young, nu, &x, &w, &area);
+        // A contact radius the patch resolves leaves nothing below the grid; the element
+        // keeps a tenth of the punch's compliance so that it never turns rigid.
+        let compliance = (punch - resolved).max(0.1 * punch);
+        let mut patch = Patch {
+            nodes: Vec::new(),
+            weights: Vec::new(),
+            surface: 0.0,
+            stiffness: 1.0 / compliance,
+            mean: None,
+            force: 0.0,
+            tear: None,
+        };
+        for ((v, _), w) in nodes.iter().zip(&w) {
+            if *v == surface_node.index {
+                patch.surface += w;
+            } else if *w > 0.0 {
+                patch.nodes.push(*v);
+                patch.weights.push(*w);
+            }
+        }
+        patch
     }
 
     /// The first surface triangle the segment `p0 -> p1` crosses, entering or leaving,
@@ -256,9 +345,14 @@ impl Simulation {
                 self.backend
                     .read_nodes(NodeField::Position, &sp.original, &mut c)
                     .map_err(|e| self.edit(e.into()))?;
-                let pinned = at(now, self.state.nodes.last().expect("pinned node").s);
+                // The cone's apex: the pinned node, or with the per-length model (whose
+                // Surface node is not pinned) the tip, the bottom of the dent.
+                let apex = match self.sheathed() && !exit {
+                    true => tip,
+                    false => at(now, self.state.nodes.last().expect("pinned node").s),
+                };
                 let corners = c.map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]);
-                let angle = mean_cone_angle(pinned.to_array(), corners, t.to_array());
+                let angle = mean_cone_angle(apex.to_array(), corners, t.to_array());
                 let mut outcome = self.contact.thresholds.touching(angle);
                 // Entering, the membrane of the region touched rules if it has one.
                 let pinned_region = self.state.nodes.last().map_or(0, |n| n.region) as usize;
@@ -268,9 +362,15 @@ impl Simulation {
                     _ => self.contact.puncture_force,
                 };
                 if let Some(f) = threshold {
+                    // The patch's force is capped at the puncture force: reaching it
+                    // is the membrane giving.
+                    let gave = match (&self.state.patch, exit) {
+                        (Some(p), false) => p.force >= f * (1.0 - 1e-9),
+                        _ => self.state.pinned_axial > f,
+                    };
                     outcome = match outcome {
                         TouchingOutcome::Release => TouchingOutcome::Release,
-                        _ if self.state.pinned_axial > f => TouchingOutcome::Puncture,
+                        _ if gave => TouchingOutcome::Puncture,
                         _ => TouchingOutcome::Stay,
                     };
                 }
@@ -290,6 +390,18 @@ impl Simulation {
                         self.state.punctured.push(pinned_region as u16);
                         self.state.nodes[0].friction = FrictionState::Slip;
                         self.state.cut_depth = self.depth_of(now.tip(), now.direction());
+                        // The entry membrane tears: the patch lets go of its load over
+                        // the tear length (and the cutting element starts from nothing).
+                        let (cut, length) = (self.state.cut_depth, self.contact.tear_length);
+                        if let Some(p) = self.state.patch.as_mut() {
+                            p.tear = Some(Tear {
+                                from: p.force,
+                                to: 0.0,
+                                at: cut,
+                                length,
+                            });
+                        }
+                        self.state.front = Default::default();
                         self.inside(now, v_tip)?;
                     }
                     (TouchingOutcome::Puncture, true) => {
@@ -348,6 +460,18 @@ impl Simulation {
         let corners = query.as_ref().map_or(&[][..], |q| &q.corners[..]);
         let read = self.read_needle(corners).map_err(|e| self.edit(e.into()))?;
         let mut pos = read.positions;
+        // The shaft's friction before any edit, to carry over to the nodes after them.
+        let field = self.friction_field(&pos, now);
+        let dbg_before = if std::env::var("NS_EVENT").is_ok() {
+            self.backend.compute_forces();
+            let n = self.editor.n_mesh();
+            let mut f = vec![[0.0f32; 4]; n];
+            self.backend.read(NodeField::Force, 0..n, &mut f).unwrap();
+            Some(f)
+        } else {
+            None
+        };
+        self.low_water = self.state.nodes.len();
         // The velocities read, until the first edit.
         let mut known = Some(read.velocities);
         let mut edited = false;
@@ -509,11 +633,83 @@ impl Simulation {
                 self.state.phase = Phase::ExitTouching;
             }
         }
+        if edited && self.sheathed() {
+            self.reassign_friction(&field, &pos, now);
+            self.settle(self.low_water, now, &pos)?;
+            if let Some(b) = dbg_before {
+                self.backend.compute_forces();
+                let n = self.editor.n_mesh();
+                let mut f = vec![[0.0f32; 4]; n];
+                self.backend.read(NodeField::Force, 0..n, &mut f).unwrap();
+                let d: Vec<f64> = b.iter().zip(&f).map(|(a, c)| (xyz(*a) - xyz(*c)).length()).collect();
+                let mut idx: Vec<usize> = (0..n).collect();
+                idx.sort_by(|&x, &y| d[y].total_cmp(&d[x]));
+                let tot: f64 = d.iter().sum();
+                let axsum: f64 = b.iter().zip(&f).map(|(a, c)| (xyz(*c) - xyz(*a)).dot(t)).sum();
+                let m = self.state.nodes.len();
+                let mut fnn = vec![[0.0f32; 4]; m];
+                self.backend.read(NodeField::Force, n..n + m, &mut fnn).unwrap();
+                eprintln!(
+                    "event step {} nodes {} low {} sum|df| {:.4} sum axial df {:.4} top {:?} needle f {:?}",
+                    self.stepper.steps(),
+                    m,
+                    self.low_water,
+                    tot,
+                    axsum,
+                    idx[..5].iter().map(|&i| (i, (d[i] * 1e4).round() / 1e4)).collect::<Vec<_>>(),
+                    fnn.iter().map(|f| ((xyz(*f).dot(t) * 1e4).round() / 1e4)).collect::<Vec<_>>()
+                );
+            }
+        }
         // What the needle nodes' positions (and, without edits, velocities) are now, so
         // that `constrain` need not read them back again.
         self.state.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
         self.state.read_velocities = known.unwrap_or_default();
         Ok(())
+    }
+
+    /// The shaft's friction as a field before an edit (nodes at positions `pos`, needle
+    /// `now`).
+    fn friction_field(&self, pos: &[DVec3], now: &Needle) -> FrictionField {
+        let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
+        let s: Vec<f64> = pos.iter().map(|x| (*x - base).dot(t)).collect();
+        let l = self.node_lengths(&s, now);
+        let mut field = FrictionField::default();
+        for (k, n) in self.state.nodes.iter().enumerate() {
+            field.total[0] += n.axial;
+            field.total[1] += n.circumferential;
+            let per = match l[k] > 0.0 {
+                true => [n.axial / l[k], n.circumferential / l[k]],
+                false => [0.0; 2],
+            };
+            field.per_node.push(per);
+            if l[k] > 0.0 {
+                field.points.push(FieldPoint {
+                    s: s[k],
+                    axial: per[0],
+                    circumferential: per[1],
+                });
+            }
+        }
+        field.points.sort_by(|a, b| a.s.total_cmp(&b.s));
+        field
+    }
+
+    /// Gives the needle nodes after an edit the friction of the field before it
+    /// ([`sheath::reassign`]): the nodes below the edit's low-water mark keep their force
+    /// per length, the others take the field's value at their place, and the total stays.
+    fn reassign_friction(&mut self, field: &FrictionField, pos: &[DVec3], now: &Needle) {
+        let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
+        let s: Vec<f64> = pos.iter().map(|x| (*x - base).dot(t)).collect();
+        let l = self.node_lengths(&s, now);
+        let own: Vec<Option<[f64; 2]>> = (0..s.len())
+            .map(|k| (k < self.low_water).then(|| field.per_node[k]))
+            .collect();
+        let forces = sheath::reassign(&field.points, field.total, &s, &l, &own);
+        for (n, f) in self.state.nodes.iter_mut().zip(forces) {
+            n.axial = f[0];
+            n.circumferential = f[1];
+        }
     }
 
     /// What the Tip node (the last node) carries into its replacement at `tip`: its

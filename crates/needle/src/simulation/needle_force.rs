@@ -10,9 +10,9 @@
 use super::{vec4, xyz, Simulation};
 use crate::config::Membrane;
 use crate::friction::{
-    paper_dynamic_friction, paper_next_state, per_length_step, split, AxialStep, FrictionModel,
-    FrictionState, Limits,
+    paper_dynamic_friction, paper_next_state, split, FrictionModel, FrictionState,
 };
+use crate::sheath::{front_step, punch_compliance, sheath_step, SheathStep, Tear};
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NodeRole};
 use crate::state::Phase;
@@ -49,11 +49,34 @@ pub(crate) fn shaft_lengths(s: &[f64], counted: &[bool], end: Option<f64>) -> Ve
 }
 
 impl Simulation {
+    /// The lengths of shaft the needle nodes at axial coordinates `s` represent
+    /// ([`shaft_lengths`]): every node but a pinned one and, with the per-length model,
+    /// the Surface node while Touching (no shaft is in yet), up to the tip (up to the last
+    /// node once the tip is out past the far surface).
+    pub(super) fn node_lengths(&self, s: &[f64], now: &Needle) -> Vec<f64> {
+        let counted: Vec<bool> = self
+            .state
+            .nodes
+            .iter()
+            .map(|n| {
+                !self.pinned(n)
+                    && !(n.role == NodeRole::Surface && self.state.phase == Phase::Touching)
+            })
+            .collect();
+        let end = match self.state.phase {
+            Phase::Exited => None,
+            _ => Some(now.length()),
+        };
+        shaft_lengths(s, &counted, end)
+    }
+
     /// Friction on the needle nodes and the needle force (after the force evaluation).
     pub(super) fn apply_friction(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimError> {
         let m = self.state.nodes.len();
         let mut total = DVec3::ZERO;
+        let mut torque = 0.0;
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
+        let sheathed = self.sheathed();
         self.state.pinned_axial = 0.0;
         self.state.tissue_depth = None;
         if m > 0 {
@@ -68,39 +91,42 @@ impl Simulation {
                 }
                 _ => usize::MAX,
             };
-            // The needle nodes' forces and, with the tip inside, the positions of the
-            // mesh nodes around the crack front (for the tissue at the tip), in one read.
+            // The needle nodes' forces, with the tip inside the positions of the mesh
+            // nodes around the crack front (for the tissue at the tip), and the positions
+            // of the contact patch's nodes, in one read.
             let around = match front < m {
                 true => self.mesh_neighbours(self.state.nodes[front].index),
                 false => Vec::new(),
             };
+            let patch_nodes = self
+                .state
+                .patch
+                .as_ref()
+                .map_or(Vec::new(), |p| p.nodes.clone());
             let mut f = vec![[0.0f32; 4]; m];
             let mut near = vec![[0.0f32; 4]; around.len()];
-            if around.is_empty() {
-                self.backend.read(NodeField::Force, n0..n0 + m, &mut f)?;
-            } else {
-                self.backend.read_many(
-                    &[
-                        (NodeField::Force, (n0..n0 + m).into()),
-                        (NodeField::Position, around.as_slice().into()),
-                    ],
-                    &mut [&mut f, &mut near],
-                )?;
+            let mut patch_pos = vec![[0.0f32; 4]; patch_nodes.len()];
+            {
+                let mut requests = vec![(NodeField::Force, (n0..n0 + m).into())];
+                let mut outs: Vec<&mut [needlesim_core::math::Vec4]> = vec![&mut f];
+                if !around.is_empty() {
+                    requests.push((NodeField::Position, around.as_slice().into()));
+                    outs.push(&mut near);
+                }
+                if !patch_nodes.is_empty() {
+                    requests.push((NodeField::Position, patch_nodes.as_slice().into()));
+                    outs.push(&mut patch_pos);
+                }
+                self.backend.read_many(&requests, &mut outs)?;
             }
             // The positions `constrain` wrote: the force evaluation does not move nodes.
             let p = std::mem::take(&mut self.state.positions);
             let s: Vec<f64> = p.iter().map(|x| (xyz(*x) - base).dot(t)).collect();
-            let counted: Vec<bool> = self.state.nodes.iter().map(|n| !self.pinned(n)).collect();
-            let end = match self.state.phase {
-                Phase::Exited => None,
-                _ => Some(now.length()),
-            };
-            let lengths = shaft_lengths(&s, &counted, end);
+            let lengths = self.node_lengths(&s, now);
             let tip_depth = self.depth_of(now.tip(), now.direction());
             // The tip cuts while it is at the deepest point it reached (the crack front).
             let cutting = tip_depth >= self.state.cut_depth - 1e-9;
             self.state.cut_depth = self.state.cut_depth.max(tip_depth);
-            let mut released = Vec::new();
             // The tissue at the tip: the front node's own rest position (the material it
             // holds), moved by the local affine map over the front node's offset from
             // the tip (it slips behind the tip while cutting); its region.
@@ -132,8 +158,9 @@ impl Simulation {
             if let Some((_, r)) = material {
                 let current = self.state.region.unwrap_or(r);
                 // A membrane being dented stays so until it gives or the tip is pulled
-                // back.
-                if !cutting {
+                // back (with the per-length model: until the tip's element has let go
+                // of it, [`Simulation::front_step`]).
+                if !cutting && !sheathed {
                     self.state.denting = None;
                 }
                 if r != current && self.state.denting.is_none() {
@@ -148,122 +175,289 @@ impl Simulation {
                     }
                 }
             }
-            let params = *self.stepper.params();
-            let gravity = DVec3::from(params.gravity.map(|g| g as f64));
-            for k in 0..m {
-                let fe = xyz(f[k]);
-                let node = self.state.nodes[k];
-                let vn = self.needle_velocity(prev, now, s[k]);
-                let vk = xyz(self.state.velocities[k]);
-                if self.pinned(&node) {
-                    total += fe;
-                    self.state.pinned_axial = -fe.dot(t);
-                    continue;
-                }
-                let (axial, normal) = split(fe.to_array(), t.to_array());
-                let normal = DVec3::from(normal);
-                let layer = self.contact.layers[node.region as usize];
-                let phi = match (self.contact.friction, layer.friction) {
-                    (FrictionModel::PerLength(_), FrictionModel::PerLength(pl)) => {
-                        let load = layer.grip * lengths[k] + normal.length();
-                        let mut lim = Limits::symmetric(
-                            pl.static_coefficient() * load,
-                            pl.coefficient * load,
-                            pl.viscous * lengths[k],
-                        );
-                        if k == front && cutting {
-                            // Cutting, or denting the membrane ahead (infinite: never
-                            // punctured).
-                            let ahead = match self
-                                .state
-                                .denting
-                                .map(|r| self.contact.layers[r as usize].membrane)
-                            {
-                                Some(Membrane::Force(f)) => f,
-                                Some(Membrane::Impenetrable) => f64::INFINITY,
-                                _ => layer.cutting,
-                            };
-                            lim.static_forward += ahead;
-                            lim.kinetic_forward += ahead;
-                        }
-                        let step = AxialStep {
-                            elastic: axial,
-                            velocity: vk.dot(t),
-                            needle_velocity: vn.dot(t),
-                            mass: 1.0 / self.inv_mass_of(&node) as f64,
-                            dt: self.stepper.dt(),
-                            damping_factor: params.damping_factor as f64,
-                            gravity: gravity.dot(t),
-                        };
-                        let (state, phi) = per_length_step(node.friction, &step, &lim);
-                        // The membrane gives when the front, held by it, starts to slip
-                        // forward (a front still slipping from before it met the membrane
-                        // is first caught: it slows to the needle's speed under the raised
-                        // limit).
-                        let gave = node.friction == FrictionState::Stick
-                            && state == FrictionState::Slip
-                            && phi > 0.0;
-                        if k == front && gave {
-                            // The membrane gave: punctured.
-                            if let Some(r) = self.state.denting.take() {
-                                self.state.region = Some(r);
-                                self.state.punctured.push(r);
-                            }
-                        }
-                        let n = &mut self.state.nodes[k];
-                        n.limit = lim.static_forward;
-                        if state != node.friction {
-                            n.friction = state;
-                            n.s = s[k];
-                            if state == FrictionState::Slip {
-                                released.push(k);
-                            }
-                        }
-                        phi
-                    }
-                    (FrictionModel::Paper(pp), _) | (_, FrictionModel::Paper(pp)) => {
-                        if self.kinematic(&node) && node.role == NodeRole::Tip {
-                            total += fe;
-                            continue;
-                        }
-                        let (fa, va, vna, ta) =
-                            (fe.to_array(), vk.to_array(), vn.to_array(), t.to_array());
-                        let state = paper_next_state(node.friction, fa, va, vna, ta, &pp);
-                        if state != node.friction {
-                            let n = &mut self.state.nodes[k];
-                            n.friction = state;
-                            n.s = s[k];
-                        }
-                        match node.friction {
-                            FrictionState::Stick => -axial,
-                            FrictionState::Slip => {
-                                DVec3::from(paper_dynamic_friction(fa, va, vna, ta, &pp)).dot(t)
-                            }
-                        }
-                    }
-                };
-                self.state.nodes[k].axial = phi;
-                // The shaft takes the normal part; the node keeps its axial force plus
-                // the needle's axial force on it.
-                f[k] = vec4(t * (axial + phi), 0.0);
-                total = total + normal - t * phi;
+            let ctx = Step {
+                prev,
+                now,
+                s: &s,
+                lengths: &lengths,
+                front,
+                cutting,
+                tip_depth,
+            };
+            if sheathed {
+                self.sheath_forces(&ctx, &mut f, &patch_pos, &mut total, &mut torque)?;
+            } else {
+                self.paper_forces(&ctx, &mut f, &mut total);
             }
             self.backend.write(NodeField::Force, n0, &f)?;
-            // A node that started to slip this step moves under its force from now on.
-            for k in released {
-                let mut q = p[k];
-                q[3] = self.inv_mass_of(&self.state.nodes[k]);
-                self.backend.write(NodeField::Position, n0 + k, &[q])?;
-            }
         }
         let along = total.dot(t);
         self.state.force = NeedleForce {
             total: total.to_array(),
             axial: -along,
             lateral: (total - t * along).length(),
+            torque,
         };
         Ok(())
     }
+
+    /// The paper's friction (equation 2, explicit stick-slip) on every needle node; adds
+    /// what the nodes exert on the needle to `total`.
+    fn paper_forces(&mut self, c: &Step, f: &mut [[f32; 4]], total: &mut DVec3) {
+        let t = DVec3::from(c.now.direction());
+        let FrictionModel::Paper(pp) = self.contact.friction else {
+            unreachable!("the paper's forces with the paper's model");
+        };
+        for k in 0..f.len() {
+            let fe = xyz(f[k]);
+            let node = self.state.nodes[k];
+            let vn = self.needle_velocity(c.prev, c.now, c.s[k]);
+            let vk = xyz(self.state.velocities[k]);
+            if self.pinned(&node) || (self.kinematic(&node) && node.role == NodeRole::Tip) {
+                *total += fe;
+                if self.pinned(&node) {
+                    self.state.pinned_axial = -fe.dot(t);
+                }
+                continue;
+            }
+            let (axial, normal) = split(fe.to_array(), t.to_array());
+            let (fa, va, vna, ta) = (fe.to_array(), vk.to_array(), vn.to_array(), t.to_array());
+            let state = paper_next_state(node.friction, fa, va, vna, ta, &pp);
+            if state != node.friction {
+                let n = &mut self.state.nodes[k];
+                n.friction = state;
+                n.s = c.s[k];
+            }
+            let phi = match node.friction {
+                FrictionState::Stick => -axial,
+                FrictionState::Slip => {
+                    DVec3::from(paper_dynamic_friction(fa, va, vna, ta, &pp)).dot(t)
+                }
+            };
+            self.state.nodes[k].axial = phi;
+            // The shaft takes the normal part; the node keeps its axial force plus
+            // the needle's axial force on it.
+            f[k] = vec4(t * (axial + phi), 0.0);
+            *total += DVec3::from(normal) - t * phi;
+        }
+    }
+
+    /// The per-length model's sheath ([`crate::sheath`]): friction on every needle node,
+    /// the tip's element on the front node, the contact patch; adds what they exert on the
+    /// needle to `total` (and the torque about its axis to `torque`).
+    fn sheath_forces(
+        &mut self,
+        c: &Step,
+        f: &mut [[f32; 4]],
+        patch_pos: &[[f32; 4]],
+        total: &mut DVec3,
+        torque: &mut f64,
+    ) -> Result<(), SimError> {
+        let t = DVec3::from(c.now.direction());
+        let base = DVec3::from(c.now.base());
+        let dt = self.stepper.dt();
+        let droll = c.now.roll() - c.prev.roll();
+        let a = self.contact.radius;
+        let params = *self.stepper.params();
+        let gravity = DVec3::from(params.gravity.map(|g| g as f64));
+        // The contact patch: the tip pushes its weighted mean along the needle.
+        if let Some(mut patch) = self.state.patch.take() {
+            let mean = patch.surface * c.s[0]
+                + patch
+                    .weights
+                    .iter()
+                    .zip(patch_pos)
+                    .map(|(w, x)| w * (xyz(*x) - base).dot(t))
+                    .sum::<f64>();
+            let cap = match patch.tear {
+                Some(tear) => tear.cap(self.state.cut_depth),
+                None => self.entry_puncture_force().unwrap_or(f64::INFINITY),
+            };
+            let moved = patch.mean.map_or(0.0, |m| mean - m);
+            patch.force = front_step(patch.force, -patch.stiffness * moved, cap);
+            patch.mean = Some(mean);
+            self.state.pinned_axial = patch.force;
+            // The share of the mesh nodes goes onto their forces; the Surface node's below.
+            if patch.force > 0.0 {
+                let mut g = vec![[0.0f32; 4]; patch.nodes.len()];
+                self.backend
+                    .read_nodes(NodeField::Force, &patch.nodes, &mut g)?;
+                for (g, w) in g.iter_mut().zip(&patch.weights) {
+                    for (ax, v) in g.iter_mut().take(3).enumerate() {
+                        *v = (*v as f64 + w * patch.force * t[ax]) as f32;
+                    }
+                }
+                needlesim_core::boundary::write_scattered(
+                    self.backend.as_mut(),
+                    NodeField::Force,
+                    &patch.nodes,
+                    &g,
+                )?;
+            }
+            *total -= t * (patch.force * (1.0 - patch.surface));
+            let gone = patch
+                .tear
+                .is_some_and(|tear| tear.done(self.state.cut_depth) && patch.force == 0.0);
+            if !gone {
+                self.state.patch = Some(patch);
+            }
+        }
+        for k in 0..f.len() {
+            let fe = xyz(f[k]);
+            let node = self.state.nodes[k];
+            if self.pinned(&node) {
+                *total += fe;
+                self.state.pinned_axial = -fe.dot(t);
+                continue;
+            }
+            let (axial, normal) = split(fe.to_array(), t.to_array());
+            let normal = DVec3::from(normal);
+            let layer = self.contact.layers[node.region as usize];
+            let FrictionModel::PerLength(pl) = layer.friction else {
+                unreachable!("regions share the per-length model");
+            };
+            let l = c.lengths[k];
+            let ds = c.s[k] - node.sigma;
+            let stiffness = layer.shear_stiffness * l;
+            let cap = pl.coefficient * (layer.grip * l + normal.length())
+                + pl.viscous * l * (ds / dt).abs();
+            // The needle's other pushes on the node: the tip's element at the front, the
+            // contact patch's share on the Surface node.
+            let mut other = 0.0;
+            if k == c.front {
+                other += self.front_step(c, ds, layer);
+            }
+            if k == 0 {
+                if let Some(patch) = &self.state.patch {
+                    other += patch.surface * patch.force;
+                }
+            }
+            let mass = 1.0 / self.inv_mass_of(&node) as f64;
+            let u = self.needle_velocity(c.prev, c.now, c.s[k]).dot(t);
+            let v = xyz(self.state.velocities[k]).dot(t);
+            let damping = params.damping_factor as f64;
+            let (elastic, phi, slips) = sheath_step(&SheathStep {
+                elastic: [node.axial, node.circumferential],
+                increment: [-stiffness * ds, stiffness * a * droll],
+                viscous: layer.shear_viscosity * l,
+                free: damping * (v + dt * (axial / mass + gravity.dot(t))) - u,
+                beta: damping * dt / mass,
+                other,
+                cap,
+            });
+            let on_node = phi[0] + other;
+            if std::env::var("NS_DEBUG").is_ok() {
+                eprintln!(
+                    "dbg step {} k {k} role {:?} s {:.6} ds {:.3e} ax_e {:.4} phi {:.4} on {:.4} cap {:.4} l {:.4} v {:?}",
+                    self.stepper.steps(), node.role, c.s[k], ds, axial, phi[0], on_node, cap, l, self.state.velocities.get(k)
+                );
+            }
+            let n = &mut self.state.nodes[k];
+            n.axial = elastic[0];
+            n.circumferential = elastic[1];
+            n.limit = cap;
+            n.friction = if slips {
+                FrictionState::Slip
+            } else {
+                FrictionState::Stick
+            };
+            n.sigma = c.s[k];
+            // The shaft takes the normal part; the node keeps its axial force plus the
+            // needle's axial force on it.
+            f[k] = vec4(t * (axial + on_node), 0.0);
+            *total += normal - t * on_node;
+            *torque += a * phi[1];
+        }
+        Ok(())
+    }
+
+    /// The force the entry membrane gives at (N): `puncture_force`, or the touched
+    /// region's membrane; `None` under the cone angle rule.
+    pub(super) fn entry_puncture_force(&self) -> Option<f64> {
+        let region = self.state.nodes.first().map_or(0, |n| n.region) as usize;
+        match self.contact.layers[region].membrane {
+            Membrane::Force(f) => Some(f),
+            Membrane::Impenetrable => Some(f64::INFINITY),
+            Membrane::None => self.contact.puncture_force,
+        }
+    }
+
+    /// One step of the tip's element at the crack front ([`crate::sheath::FrontElement`]),
+    /// the front node having moved `ds` along the needle; returns its force on the node
+    /// (along the needle). It cuts with at most the region's cutting force, building up
+    /// over one needle radius of advance; dents a membrane up to its puncture force (with
+    /// the stiffness of a punch of the membrane's contact radius), then the membrane gives
+    /// and tears; and it lets go of the crack front over the same length when the tip is
+    /// pulled back from it (the cap falls linearly to zero over that retraction), pushing
+    /// nothing in a track already cut.
+    fn front_step(&mut self, c: &Step, ds: f64, layer: super::Layer) -> f64 {
+        let a = self.contact.radius;
+        let cut = self.state.cut_depth;
+        let mut front = self.state.front;
+        if front.tear.is_some_and(|t| t.done(cut)) {
+            front.tear = None;
+        }
+        let denting = self
+            .state
+            .denting
+            .map(|r| (r, self.contact.layers[r as usize]));
+        let cutting_stiffness = layer.cutting / a;
+        let (stiffness, cap) = match (front.tear, denting) {
+            (Some(tear), _) => (cutting_stiffness, tear.cap(cut)),
+            (None, Some((_, l))) => {
+                let cap = match l.membrane {
+                    Membrane::Force(f) => f,
+                    _ => f64::INFINITY,
+                };
+                let (e, nu) = l.modulus;
+                (1.0 / punch_compliance(e, nu, l.contact_radius), cap)
+            }
+            (None, None) => (cutting_stiffness, layer.cutting),
+        };
+        // Engaged with the crack front while the tip is within the element's compression
+        // at full load behind it (a needle radius when cutting).
+        let reach = match (cap.is_finite() && stiffness > 0.0, cap > 0.0) {
+            (true, true) => cap / stiffness,
+            _ => a,
+        };
+        let engaged = ((c.tip_depth - (cut - reach)) / reach).clamp(0.0, 1.0);
+        front.force = front_step(front.force, -stiffness * ds, cap * engaged);
+        // The membrane gives when the tip's force on it reaches its puncture force.
+        if let Some((r, l)) = denting {
+            if cap.is_finite() && c.cutting && front.force >= cap * (1.0 - 1e-9) {
+                self.state.denting = None;
+                self.state.region = Some(r);
+                self.state.punctured.push(r);
+                front.tear = Some(Tear {
+                    from: front.force,
+                    to: l.cutting,
+                    at: cut,
+                    length: self.contact.tear_length,
+                });
+            } else if !c.cutting && front.force == 0.0 {
+                // Pulled back off the membrane.
+                self.state.denting = None;
+            }
+        }
+        self.state.front = front;
+        front.force
+    }
+}
+
+/// What every node's friction in a step needs.
+pub(super) struct Step<'a> {
+    prev: &'a Needle,
+    now: &'a Needle,
+    /// Axial coordinates of the needle nodes, m.
+    s: &'a [f64],
+    /// Their shaft lengths, m.
+    lengths: &'a [f64],
+    /// The front node (`usize::MAX`: none).
+    front: usize,
+    /// Whether the tip is at the crack front.
+    cutting: bool,
+    /// The tip's depth past the entry, m.
+    tip_depth: f64,
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@ use super::{Contact, Layer, Simulation};
 use crate::checkpoint::{fingerprint, Checkpoint};
 use crate::config::Membrane;
 use crate::config::NeedleConfig;
-use crate::friction::{grip_from_modulus, FrictionModel, PerLengthFriction};
+use crate::friction::{grip_from_modulus, FrictionModel};
 use crate::needle::Needle;
 use crate::node_editor::NodeEditor;
 use crate::splits::{inside_rest_body, rest_crossings, SurfaceSplits};
@@ -62,6 +62,8 @@ impl Prepared {
                     thresholds: c.thresholds,
                     puncture_force: c.puncture_force,
                     refresh: c.tip_refresh * self.spacing,
+                    radius: c.radius,
+                    tear_length: c.tear_length(),
                 },
             ),
             None => (
@@ -73,6 +75,8 @@ impl Prepared {
                     thresholds: Default::default(),
                     puncture_force: None,
                     refresh: 0.1 * self.spacing,
+                    radius: crate::config::RADIUS_18G,
+                    tear_length: 2.0 * crate::config::RADIUS_18G,
                 },
             ),
         };
@@ -99,6 +103,7 @@ impl Prepared {
             rest: self.rest,
             state: NeedleState::new(needle, surface),
             fingerprint: self.fingerprint,
+            low_water: 0,
         })
     }
 }
@@ -135,35 +140,29 @@ fn check_start_outside(
     Ok(())
 }
 
-/// The grip per unit length (N/m) of the per-length friction model `friction` in a
-/// region of `material`: the given `grip`, or from the material's Young's modulus (for
-/// mass-spring and shape matching, the one their calibrated stiffness gives at the mesh
-/// spacing `h`). `key` is the friction table's key for errors.
-fn resolve_grip(
+/// Young's modulus and Poisson ratio of `material`, Pa: for mass-spring and shape
+/// matching, the modulus their calibrated stiffness gives at the mesh spacing `h` and the
+/// Poisson ratio their lattices show (mass-spring about 1/4, cluster shape matching about
+/// 0: docs/report). `key` names the needle table that needs it, for the error when the
+/// neighbour count has no calibration.
+fn resolve_modulus(
     scene: &Scene,
     material: &Material,
-    friction: &FrictionModel,
-    radius: f64,
     h: f64,
     key: &str,
-) -> Result<f64, SceneError> {
-    let FrictionModel::PerLength(PerLengthFriction { grip, .. }) = friction else {
-        return Ok(0.0);
-    };
-    if let Some(g) = grip {
-        return Ok(*g);
-    }
+) -> Result<(f64, f64), SceneError> {
     use needlesim_core::calibration::calibration;
     let k = scene.tissue.neighbours;
     let uncalibrated = |e: needlesim_core::calibration::UncalibratedNeighbours| {
         SceneError::invalid(
             format!("{key}.grip"),
-            format!("cannot be derived from this material's stiffness ({e}); give it in N/m"),
+            format!(
+                "cannot be derived from this material's stiffness ({e}); give the grip (N/m) \
+                 and the shear stiffness (N/m^2)"
+            ),
         )
     };
-    // Mass-spring's lattice Poisson ratio is about 1/4; cluster shape matching's lateral
-    // contraction is about 0 (docs/report).
-    let (young, nu) = match *material {
+    Ok(match *material {
         Material::DebunneMeshfree(p) => (p.young_modulus, p.poisson_ratio),
         Material::PointBased(p) => (p.young_modulus, p.poisson_ratio),
         Material::MassSpring(p) => {
@@ -179,8 +178,44 @@ fn resolve_grip(
             };
             (p.stiffness / (c * h), 0.0)
         }
+    })
+}
+
+/// The grip per unit length (N/m), the sheath's shear stiffness and viscous coefficient
+/// per unit length (N/m^2, N s/m^2) of the per-length friction model `friction` in a
+/// region of `material`: the given values, or from the material's Young's modulus
+/// ([`resolve_modulus`]; [`grip_from_modulus`], [`crate::sheath::shaft_stiffness`] with
+/// the needle spacing `spacing`), and that modulus and Poisson ratio (0 when both are
+/// given and the material has no calibration). `key` is the friction table's key for
+/// errors.
+#[allow(clippy::too_many_arguments)]
+fn resolve_friction(
+    scene: &Scene,
+    material: &Material,
+    friction: &FrictionModel,
+    radius: f64,
+    h: f64,
+    spacing: f64,
+    key: &str,
+) -> Result<(f64, f64, f64, (f64, f64)), SceneError> {
+    let FrictionModel::PerLength(p) = friction else {
+        return Ok((0.0, 0.0, 0.0, (0.0, 0.0)));
     };
-    Ok(grip_from_modulus(young, nu, radius))
+    let modulus = resolve_modulus(scene, material, h, key);
+    let (young, nu) = match (&modulus, p.grip, p.shear_stiffness) {
+        (Ok(m), _, _) => *m,
+        (Err(_), Some(_), Some(_)) => (0.0, 0.0),
+        (Err(_), _, _) => return Err(modulus.unwrap_err()),
+    };
+    let grip = p.grip.unwrap_or_else(|| grip_from_modulus(young, nu, radius));
+    let shear = p
+        .shear_stiffness
+        .unwrap_or_else(|| crate::sheath::shaft_stiffness(young, nu, radius, spacing));
+    let eta = p
+        .sheath_viscosity
+        .unwrap_or(crate::friction::DEFAULT_SHEATH_VISCOSITY);
+    let viscous = crate::sheath::shaft_viscosity(eta, radius, spacing);
+    Ok((grip, shear, viscous, (young, nu)))
 }
 
 /// The needle's parameters in every region of `tissue` (region 0 from `[needle]`).
@@ -189,14 +224,19 @@ fn resolve_layers(
     tissue: &Tissue,
     c: Option<&NeedleConfig>,
     h: f64,
+    spacing: f64,
 ) -> Result<Vec<Layer>, SceneError> {
     let regions = &tissue.regions;
     let Some(c) = c else {
         let none = Layer {
             friction: FrictionModel::default(),
             grip: 0.0,
+            shear_stiffness: 0.0,
+            shear_viscosity: 0.0,
+            modulus: (0.0, 0.0),
             cutting: 0.0,
             membrane: Membrane::None,
+            contact_radius: 0.0,
         };
         return Ok(vec![none; regions.names.len()]);
     };
@@ -208,18 +248,24 @@ fn resolve_layers(
                 Some(t) if t.contains_key("friction") => format!("region[{name}].needle.friction"),
                 _ => "needle.friction".to_string(),
             };
+            let (grip, shear_stiffness, shear_viscosity, modulus) = resolve_friction(
+                scene,
+                &regions.materials[r],
+                &rn.friction,
+                c.radius,
+                h,
+                spacing,
+                &key,
+            )?;
             Ok(Layer {
                 friction: rn.friction,
-                grip: resolve_grip(
-                    scene,
-                    &regions.materials[r],
-                    &rn.friction,
-                    c.radius,
-                    h,
-                    &key,
-                )?,
+                grip,
+                shear_stiffness,
+                shear_viscosity,
+                modulus,
                 cutting: rn.cutting,
                 membrane: rn.membrane,
+                contact_radius: rn.contact_radius,
             })
         })
         .collect()
@@ -265,7 +311,7 @@ impl Simulation {
         }
         let extra = config.as_ref().map_or(0, |c| c.node_slots(spacing));
         let tissue = Tissue::from_cloud(scene, cloud, extra)?;
-        let layers = resolve_layers(scene, &tissue, config.as_ref(), mesh_spacing)?;
+        let layers = resolve_layers(scene, &tissue, config.as_ref(), mesh_spacing, spacing)?;
         let editor = NodeEditor::new(&tissue, &rest, scene.tissue.weight);
         let fingerprint = fingerprint(scene, &tissue.state.positions);
         Ok(Prepared {

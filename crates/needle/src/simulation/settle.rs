@@ -1,0 +1,211 @@
+//! New needle nodes placed in equilibrium (per-length model).
+//!
+//! The paper (section 5.1) places an added node's rest position by the shape vector of
+//! its neighbourhood: strain-free for a neighbourhood that is only rotated, "a small
+//! non-existent deformation in other methods". At the needle the neighbourhood is far
+//! from a rigid motion: the tissue ahead of the tip is compressed by the cutting force,
+//! the tissue along the shaft is dragged by friction. Measured on the liver scene, a Shaft
+//! node placed that way started with an axial elastic force of -0.57 N against the 0.17 N
+//! of friction it was to carry, and the Tip node re-added behind it with 0.18 N too much:
+//! both were thrown back along the shaft at 1.5 m/s, and the tissue rang at its nodal
+//! frequency (about 400 Hz) for a quarter of a second.
+//!
+//! Here the rest positions of the nodes an edit added are moved along the needle until
+//! each one's axial elastic force balances the loads it carries (its share of the shaft's
+//! friction, the tip's element on the front node, the contact patch's share on the Surface
+//! node): a secant iteration on the force evaluation itself, so it holds for every tissue
+//! model, with a finite-difference probe for the stiffness. Typically three evaluations
+//! of the forces per edit (the cost of three steps, at a few edits per node spacing of
+//! insertion). The edits stay exact: a node is re-placed by removing it and adding it
+//! again with the new rest position, so the undo log is that of one addition.
+
+use super::{xyz, Simulation};
+use crate::needle::Needle;
+use crate::node_editor::{EditError, Placement};
+use crate::nodes::NodeRole;
+use crate::state::Phase;
+use crate::SimulationError;
+use glam::DVec3;
+use needlesim_core::NodeField;
+
+/// Most force evaluations spent on one edit.
+const MAX_EVALUATIONS: usize = 5;
+/// Relative residual at which a node counts as settled (of the largest load, or of the
+/// force scale when every load is near zero).
+const TOLERANCE: f64 = 0.01;
+
+impl Simulation {
+    /// Settles the needle nodes from stack position `first` on (all added this step): see
+    /// the module docs. `now` is the needle this step, `pos` the needle nodes' positions.
+    pub(super) fn settle(
+        &mut self,
+        first: usize,
+        now: &Needle,
+        pos: &[DVec3],
+    ) -> Result<(), SimulationError> {
+        let m = self.state.nodes.len();
+        if first >= m || !self.sheathed() {
+            return Ok(());
+        }
+        let t = DVec3::from(now.direction());
+        let n0 = self.editor.n_mesh();
+        let loads: Vec<f64> = (first..m).map(|k| self.carried_load(k, now, pos)).collect();
+        let scale = loads.iter().fold(0.0f64, |a, l| a.max(l.abs()));
+        let mut rest: Vec<DVec3> = (first..m)
+            .map(|k| DVec3::from(self.rest_of(self.state.nodes[k].index)))
+            .collect();
+        // The residual of every node: its elastic force plus the loads it carries, axial
+        // (the loads are along the needle) and lateral (the shaft takes a lateral force; a
+        // new node should not bring one in with it).
+        let residual = |sim: &mut Self| -> Result<Vec<DVec3>, SimulationError> {
+            sim.backend.compute_forces();
+            let mut f = vec![[0.0f32; 4]; m - first];
+            sim.backend
+                .read(NodeField::Force, n0 + first..n0 + m, &mut f)
+                .map_err(|e| sim.edit(e.into()))?;
+            Ok(f.iter().zip(&loads).map(|(f, l)| xyz(*f) + t * *l).collect())
+        };
+        let size = |r: &[DVec3]| r.iter().fold(0.0f64, |a, x| a.max(x.length()));
+        let mut r = residual(self)?;
+        // The force scale when the loads are small: what the tissue pushes with now.
+        let tol = TOLERANCE * scale.max(0.1 * size(&r));
+        if size(&r) <= tol {
+            return Ok(());
+        }
+        // Probe: every node's rest moved a thousandth of a spacing forward gives its
+        // stiffness against its own rest position (taken the same in every direction
+        // until the secant steps below refine it per direction).
+        let eps = 1e-3 * self.spacing;
+        let probe: Vec<DVec3> = rest.iter().map(|x| *x + t * eps).collect();
+        self.replace_rest(first, &probe)?;
+        let r1 = residual(self)?;
+        let mut stiffness: Vec<DVec3> = r1
+            .iter()
+            .zip(&r)
+            .map(|(a, b)| DVec3::splat((*a - *b).dot(t) / eps))
+            .collect();
+        rest = probe;
+        r = r1;
+        let limit = 0.5 * self.spacing;
+        for _ in 2..MAX_EVALUATIONS {
+            if size(&r) <= tol {
+                break;
+            }
+            // Newton with the measured (diagonal) stiffness; a component whose force does
+            // not answer its rest position is left where it is.
+            let step: Vec<DVec3> = r
+                .iter()
+                .zip(&stiffness)
+                .map(|(r, k)| {
+                    let d = |r: f64, k: f64| if k > 0.0 { (-r / k).clamp(-limit, limit) } else { 0.0 };
+                    DVec3::new(d(r.x, k.x), d(r.y, k.y), d(r.z, k.z))
+                })
+                .collect();
+            let next: Vec<DVec3> = rest.iter().zip(&step).map(|(x, d)| *x + *d).collect();
+            self.replace_rest(first, &next)?;
+            let r2 = residual(self)?;
+            for k in 0..stiffness.len() {
+                for c in 0..3 {
+                    if step[k][c].abs() > 1e-9 * self.spacing {
+                        let secant = (r2[k][c] - r[k][c]) / step[k][c];
+                        if secant > 0.0 {
+                            stiffness[k][c] = secant;
+                        }
+                    }
+                }
+            }
+            rest = next;
+            r = r2;
+        }
+        Ok(())
+    }
+
+    /// The axial load needle node `k` carries (N, along the needle): its friction, the
+    /// tip's element at the front, the contact patch's share on the Surface node.
+    fn carried_load(&self, k: usize, now: &Needle, pos: &[DVec3]) -> f64 {
+        let node = &self.state.nodes[k];
+        let mut load = node.axial;
+        let m = self.state.nodes.len();
+        let front = match self.state.phase {
+            Phase::Inside if self.state.nodes[m - 1].role == NodeRole::Tip => Some(m - 1),
+            Phase::Inside => {
+                let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
+                let s = |k: usize| (pos[k] - base).dot(t);
+                (0..m).max_by(|&a, &b| s(a).total_cmp(&s(b)))
+            }
+            _ => None,
+        };
+        if front == Some(k) {
+            load += self.state.front.force;
+        }
+        if k == 0 {
+            if let Some(p) = &self.state.patch {
+                load += p.surface * p.force;
+            }
+        }
+        load
+    }
+
+    /// Re-places the needle nodes from stack position `first` on with the rest positions
+    /// `rest` (one per node, in order): removes them and adds them again at their current
+    /// positions and velocities, among the same candidates.
+    fn replace_rest(&mut self, first: usize, rest: &[DVec3]) -> Result<(), SimulationError> {
+        let m = self.state.nodes.len();
+        let n0 = self.editor.n_mesh();
+        let (mut p, mut v) = (vec![[0.0f32; 4]; m - first], vec![[0.0f32; 4]; m - first]);
+        self.backend
+            .read_many(
+                &[
+                    (NodeField::Position, (n0 + first..n0 + m).into()),
+                    (NodeField::Velocity, (n0 + first..n0 + m).into()),
+                ],
+                &mut [&mut p, &mut v],
+            )
+            .map_err(|e| self.edit(e.into()))?;
+        for _ in first..m {
+            self.editor
+                .remove_last(self.backend.as_mut())
+                .map_err(|e| self.edit(e))?;
+        }
+        for (j, k) in (first..m).enumerate() {
+            let seeds = self.seeds_of(k);
+            let cand = self.editor.rings(&seeds, 2);
+            let index = self
+                .editor
+                .add_node_placed(
+                    self.backend.as_mut(),
+                    [p[j][0], p[j][1], p[j][2]],
+                    [v[j][0], v[j][1], v[j][2]],
+                    &cand,
+                    Placement::Rest(rest[j].to_array()),
+                )
+                .map_err(|e: EditError| self.edit(e))?;
+            debug_assert_eq!(index, self.state.nodes[k].index);
+            // The inverse mass the constraint gave the node (the slot's w lane).
+            let mut q = [p[j]];
+            q[0][3] = p[j][3];
+            self.backend
+                .write(NodeField::Position, index as usize, &q)
+                .map_err(|e| self.edit(e.into()))?;
+        }
+        Ok(())
+    }
+
+    /// The seeds the needle node at stack position `k` was added with: the split
+    /// triangle's corners for the Surface node, else the two nodes below it.
+    fn seeds_of(&self, k: usize) -> Vec<u32> {
+        if k == 0 {
+            return self
+                .state
+                .surface
+                .last_split()
+                .map_or_else(Vec::new, |s| s.original.to_vec());
+        }
+        self.state.nodes[..k]
+            .iter()
+            .rev()
+            .take(2)
+            .map(|n| n.index)
+            .collect()
+    }
+}
