@@ -44,10 +44,23 @@ pub struct NeedleNode {
     /// (per-length model: the sheath's relative motion is measured from it).
     #[serde(default)]
     pub sigma: f64,
+    /// The tissue's force on the node normal to the shaft in the last step (world frame,
+    /// N): what the shaft holds it with sideways.
+    #[serde(default)]
+    pub normal: [f64; 3],
+    /// The share of its shaft length the node keeps (per-length model): 1, falling to 0
+    /// while the needle is pulled back over the last Shaft node, which is removed once it
+    /// has handed its length (and friction) over to the node before it.
+    #[serde(default = "one")]
+    pub share: f64,
     /// The tissue region the node was added in (that of its nearest neighbour at rest);
     /// its friction is that region's.
     #[serde(default)]
     pub region: u16,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// The force the tissue exerts on the needle in one step.

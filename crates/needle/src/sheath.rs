@@ -262,42 +262,43 @@ pub fn patch_compliance(young: f64, nu: f64, x: &[DVec3], w: &[f64], area: &[f64
     total
 }
 
-/// A node of the shaft's friction field before an edit: axial coordinate `s` (m), force
-/// per unit length axial and circumferential (N/m).
+/// Number of per-length quantities [`reassign`] carries along the shaft.
+pub const FIELD: usize = 5;
+
+/// A node of the shaft's load field before an edit: axial coordinate `s` (m) and its
+/// loads per unit length (N/m): axial and circumferential friction, then the normal force
+/// of the tissue on the shaft (world frame).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FieldPoint {
     /// Axial coordinate, m.
     pub s: f64,
-    /// Axial friction force per length, N/m.
-    pub axial: f64,
-    /// Circumferential friction force per length, N/m.
-    pub circumferential: f64,
+    /// Loads per length, N/m: axial friction, circumferential friction, normal x, y, z.
+    pub per_length: [f64; FIELD],
 }
 
-/// The friction forces of the nodes after an edit, so that the shaft's friction field is
-/// continuous: node `k` (axial coordinate `s[k]`, shaft length `l[k]`) keeps its own force
-/// per length when `own[k]` is `Some`, otherwise takes the field `before` interpolated
-/// (linearly in `s`, held at the ends) at `s[k]`; then the new nodes (or, without any, all
-/// nodes) share the difference to `total` (the summed force before, axial and
-/// circumferential) in proportion to their length. Returns the forces `[axial,
-/// circumferential]` per node, N.
+/// The loads of the nodes after an edit, so that the shaft's load field is continuous:
+/// node `k` (axial coordinate `s[k]`, shaft length `l[k]`) keeps its own load per length
+/// when `own[k]` is `Some`, otherwise takes the field `before` interpolated (linearly in
+/// `s`, held at the ends) at `s[k]`; then the new nodes (or, without any, all nodes) share
+/// the difference to `total` (the summed loads before) in proportion to their length.
+/// Returns the loads per node, N.
 pub fn reassign(
     before: &[FieldPoint],
-    total: [f64; 2],
+    total: [f64; FIELD],
     s: &[f64],
     l: &[f64],
-    own: &[Option<[f64; 2]>],
-) -> Vec<[f64; 2]> {
-    let interp = |x: f64| -> [f64; 2] {
+    own: &[Option<[f64; FIELD]>],
+) -> Vec<[f64; FIELD]> {
+    let interp = |x: f64| -> [f64; FIELD] {
         let Some(first) = before.first() else {
-            return [0.0; 2];
+            return [0.0; FIELD];
         };
         let last = before.last().expect("non-empty");
         if x <= first.s {
-            return [first.axial, first.circumferential];
+            return first.per_length;
         }
         if x >= last.s {
-            return [last.axial, last.circumferential];
+            return last.per_length;
         }
         let i = before.partition_point(|p| p.s <= x);
         let (a, b) = (before[i - 1], before[i]);
@@ -306,15 +307,12 @@ pub fn reassign(
         } else {
             0.0
         };
-        [
-            a.axial + f * (b.axial - a.axial),
-            a.circumferential + f * (b.circumferential - a.circumferential),
-        ]
+        std::array::from_fn(|c| a.per_length[c] + f * (b.per_length[c] - a.per_length[c]))
     };
-    let mut out: Vec<[f64; 2]> = (0..s.len())
+    let mut out: Vec<[f64; FIELD]> = (0..s.len())
         .map(|k| {
             let per = own[k].unwrap_or_else(|| interp(s[k]));
-            [per[0] * l[k], per[1] * l[k]]
+            per.map(|p| p * l[k])
         })
         .collect();
     let fresh: Vec<usize> = (0..s.len()).filter(|&k| own[k].is_none()).collect();
@@ -325,7 +323,7 @@ pub fn reassign(
     };
     let length: f64 = share.iter().map(|&k| l[k]).sum();
     if length > 0.0 {
-        for c in 0..2 {
+        for c in 0..FIELD {
             let now: f64 = out.iter().map(|f| f[c]).sum();
             let d = total[c] - now;
             for &k in &share {
@@ -439,22 +437,21 @@ mod tests {
     #[test]
     fn reassignment_keeps_the_total_and_interpolates_new_nodes() {
         // Two nodes at 0 and 2 with 1 and 3 N/m; a new node at 1 between them.
+        let p = |a: f64, c: f64| [a, c, 0.0, 0.0, 0.0];
         let before = [
             FieldPoint {
                 s: 0.0,
-                axial: 1.0,
-                circumferential: 0.0,
+                per_length: p(1.0, 0.0),
             },
             FieldPoint {
                 s: 2.0,
-                axial: 3.0,
-                circumferential: 0.5,
+                per_length: p(3.0, 0.5),
             },
         ];
-        let total = [1.0 * 1.0 + 3.0 * 1.0, 0.5];
+        let total = p(1.0 * 1.0 + 3.0 * 1.0, 0.5);
         let s = [0.0, 1.0, 2.0];
         let l = [0.5, 1.0, 0.5];
-        let own = [Some([1.0, 0.0]), None, Some([3.0, 0.5])];
+        let own = [Some(p(1.0, 0.0)), None, Some(p(3.0, 0.5))];
         let f = reassign(&before, total, &s, &l, &own);
         let sum: f64 = f.iter().map(|x| x[0]).sum();
         assert!((sum - total[0]).abs() < 1e-12, "{f:?}");
@@ -464,7 +461,7 @@ mod tests {
         // exactly its interpolated 2 N/m.
         assert!((f[1][0] - 2.0).abs() < 1e-12, "{f:?}");
         // A removal: the survivors share what the removed node carried.
-        let f = reassign(&before, [10.0, 0.0], &[0.0], &[1.0], &[Some([1.0, 0.0])]);
-        assert_eq!(f, vec![[10.0, 0.0]]);
+        let f = reassign(&before, p(10.0, 0.0), &[0.0], &[1.0], &[Some(p(1.0, 0.0))]);
+        assert_eq!(f, vec![p(10.0, 0.0)]);
     }
 }

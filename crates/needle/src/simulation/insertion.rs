@@ -3,7 +3,8 @@
 //!
 //! Inside, with `d` the axial distance from the last non-tip node to the tip
 //! ([`shaft_edit`]): a Shaft node is added at `h` past the last node when `d >= 1.5 h` (so
-//! it never lands on the Tip node), the last Shaft node is removed when `d < h / 2`, the
+//! it never lands on the Tip node), the last Shaft node is removed when `d < 0.3 h` (a
+//! margin below the `h / 2` it was added at), the
 //! Tip node exists while `d >= h / 4` past the Surface node (added at `h / 2`), and is
 //! removed and re-added (neighbour refresh) every `tip_refresh * h` of tip motion. The
 //! paper adds nodes at the tip when `d > h`; these margins keep any two needle nodes at
@@ -45,12 +46,12 @@ pub const MAX_STEP_SPACINGS: f64 = 4.0;
 /// The shaft's friction before an edit ([`Simulation::reassign_friction`]).
 #[derive(Debug, Default)]
 struct FrictionField {
-    /// Force per unit length (axial, circumferential) of every node in stack order, N/m.
-    per_node: Vec<[f64; 2]>,
+    /// Loads per unit length ([`FieldPoint::per_length`]) of every node in stack order.
+    per_node: Vec<[f64; sheath::FIELD]>,
     /// The same at the nodes with a shaft length, sorted along the needle.
     points: Vec<FieldPoint>,
-    /// Summed forces, N.
-    total: [f64; 2],
+    /// Summed loads, N.
+    total: [f64; sheath::FIELD],
 }
 
 /// The next edit of the needle node stack while Inside.
@@ -71,13 +72,19 @@ pub(crate) enum ShaftEdit {
     Keep,
 }
 
+/// A Shaft node is removed when the tip is within this many spacings past it: below the
+/// h / 2 at which it was added (h past the node before it when the tip was 1.5 h past
+/// that), so that a node the tissue carries forward a little does not go and come back
+/// every step.
+pub(super) const REMOVE: f64 = 0.3;
+
 /// The margins: `has_tip` whether the last node is the Tip node, `last` the role of the
 /// last other node, `d` the tip's axial distance past that node, `h` the node spacing.
 pub(crate) fn shaft_edit(has_tip: bool, last: NodeRole, d: f64, h: f64) -> ShaftEdit {
     let shaft = last == NodeRole::Shaft;
-    if has_tip && (d >= 1.5 * h || (shaft && d < 0.5 * h) || d < 0.25 * h) {
+    if has_tip && (d >= 1.5 * h || (shaft && d < REMOVE * h) || d < 0.25 * h) {
         ShaftEdit::LiftTip
-    } else if shaft && d < 0.5 * h {
+    } else if shaft && d < REMOVE * h {
         ShaftEdit::RemoveShaft
     } else if d >= 1.5 * h {
         ShaftEdit::AddShaft
@@ -132,6 +139,8 @@ impl Simulation {
             limit: 0.0,
             circumferential: 0.0,
             sigma: s,
+            normal: [0.0; 3],
+            share: 1.0,
             region,
         });
         Ok(())
@@ -443,8 +452,11 @@ impl Simulation {
             self.spacing,
         );
         let base = DVec3::from(now.base());
-        let advancing = v_tip.dot(t) > 0.0;
+        // Advancing: the tip moved forward along the needle this step (by more than
+        // rounding: a rotation about the entry point moves it sideways only).
+        let advancing = v_tip.dot(t) * self.stepper.dt() > 1e-12;
         let per_length = self.contact.per_length().is_some();
+        let sheathed = self.sheathed();
         // The far-side test for the needle nodes as they are: the corners of its candidate
         // triangles come back with the nodes' positions and velocities in one readback.
         // Both serve below while no edit changes the nodes (or the split triangles).
@@ -504,12 +516,36 @@ impl Simulation {
             let crowded = role == NodeRole::Shaft
                 && last > 0
                 && (pos[last] - pos[last - 1]).dot(t) < 0.25 * h;
+            // With the per-length model the Tip node marks the crack front: it is taken
+            // off (and not put back) once the needle is pulled back behind it, and put on
+            // again only when the needle advances.
+            let behind = sheathed
+                && has_tip
+                && !advancing
+                && (pos[nodes.len() - 1] - base).dot(t) > now.length();
+            // With the per-length model a Shaft node the tip is pulled back over is
+            // removed once it has handed its shaft length over (its share is 0), or once
+            // the tip is behind it.
+            let d_edit = match sheathed && role == NodeRole::Shaft && nodes[last].share > 0.0 {
+                true if d >= 0.0 => d.max(REMOVE * h),
+                _ => d,
+            };
             let edit = match (crowded, has_tip) {
                 (true, true) => ShaftEdit::LiftTip,
                 (true, false) => ShaftEdit::RemoveShaft,
-                (false, _) => shaft_edit(has_tip, role, d, h),
+                (false, _) if behind => ShaftEdit::LiftTip,
+                (false, _) => match shaft_edit(has_tip, role, d_edit, h) {
+                    ShaftEdit::AddTip | ShaftEdit::AddShaft if sheathed && !advancing => {
+                        ShaftEdit::Keep
+                    }
+                    e => e,
+                },
             };
             match edit {
+                ShaftEdit::LiftTip if behind => {
+                    self.remove().map_err(|e| self.edit(e))?;
+                    pos.pop();
+                }
                 ShaftEdit::LiftTip => {
                     // Taken off to edit the shaft behind it: re-added below with its load.
                     if carried.is_none() {
@@ -590,7 +626,13 @@ impl Simulation {
             .nodes
             .last()
             .is_some_and(|n| n.role == NodeRole::Tip);
-        let moved = (tip - DVec3::from(self.state.tip_placed)).length();
+        // How far the Tip node is from the tip: with the per-length model, along the
+        // needle (the tip cuts past the Tip node's material; turning the needle sideways
+        // carries the Tip node with it and cuts nothing); with the paper's, since placed.
+        let moved = match (self.sheathed(), pos.last()) {
+            (true, Some(x)) => now.length() - (*x - base).dot(t),
+            _ => (tip - DVec3::from(self.state.tip_placed)).length(),
+        };
         if has_tip && !edited && moved > self.contact.refresh {
             // The refreshed Tip node keeps the load it carried: its friction state and,
             // with the per-length model, the tissue's velocity and the material at the
@@ -668,26 +710,33 @@ impl Simulation {
         Ok(())
     }
 
-    /// The shaft's friction as a field before an edit (nodes at positions `pos`, needle
-    /// `now`).
+    /// The shaft's loads as a field before an edit (nodes at positions `pos`, needle
+    /// `now`): friction and normal force per length.
     fn friction_field(&self, pos: &[DVec3], now: &Needle) -> FrictionField {
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
         let s: Vec<f64> = pos.iter().map(|x| (*x - base).dot(t)).collect();
         let l = self.node_lengths(&s, now);
         let mut field = FrictionField::default();
         for (k, n) in self.state.nodes.iter().enumerate() {
-            field.total[0] += n.axial;
-            field.total[1] += n.circumferential;
+            let loads = [
+                n.axial,
+                n.circumferential,
+                n.normal[0],
+                n.normal[1],
+                n.normal[2],
+            ];
+            for (t, x) in field.total.iter_mut().zip(loads) {
+                *t += x;
+            }
             let per = match l[k] > 0.0 {
-                true => [n.axial / l[k], n.circumferential / l[k]],
-                false => [0.0; 2],
+                true => loads.map(|x| x / l[k]),
+                false => [0.0; sheath::FIELD],
             };
             field.per_node.push(per);
             if l[k] > 0.0 {
                 field.points.push(FieldPoint {
                     s: s[k],
-                    axial: per[0],
-                    circumferential: per[1],
+                    per_length: per,
                 });
             }
         }
@@ -695,20 +744,25 @@ impl Simulation {
         field
     }
 
-    /// Gives the needle nodes after an edit the friction of the field before it
-    /// ([`sheath::reassign`]): the nodes below the edit's low-water mark keep their force
-    /// per length, the others take the field's value at their place, and the total stays.
+    /// Gives the needle nodes after an edit the loads of the field before it
+    /// ([`sheath::reassign`]): the nodes below the edit's low-water mark keep their loads
+    /// per length, the others take the field's value at their place, and the totals stay.
+    /// The friction is the new nodes' sheath state; the normal force is what they are
+    /// settled to ([`Simulation::settle`]).
     fn reassign_friction(&mut self, field: &FrictionField, pos: &[DVec3], now: &Needle) {
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
         let s: Vec<f64> = pos.iter().map(|x| (*x - base).dot(t)).collect();
         let l = self.node_lengths(&s, now);
-        let own: Vec<Option<[f64; 2]>> = (0..s.len())
+        let own: Vec<Option<[f64; sheath::FIELD]>> = (0..s.len())
             .map(|k| (k < self.low_water).then(|| field.per_node[k]))
             .collect();
-        let forces = sheath::reassign(&field.points, field.total, &s, &l, &own);
-        for (n, f) in self.state.nodes.iter_mut().zip(forces) {
+        let loads = sheath::reassign(&field.points, field.total, &s, &l, &own);
+        for (k, (n, f)) in self.state.nodes.iter_mut().zip(loads).enumerate() {
             n.axial = f[0];
             n.circumferential = f[1];
+            if k >= self.low_water {
+                n.normal = [f[2], f[3], f[4]];
+            }
         }
     }
 
@@ -825,14 +879,16 @@ mod tests {
         // With a Tip node: lifted at 1.5 h (to add a Shaft node behind it) ...
         assert_eq!(shaft_edit(true, Shaft, 1.49, h), ShaftEdit::Keep);
         assert_eq!(shaft_edit(true, Shaft, 1.5, h), ShaftEdit::LiftTip);
-        // ... when the needle is pulled back to h/2 of a Shaft node, or h/4 of the Surface node.
+        // ... when the needle is pulled back to 0.3 h of a Shaft node (it was added at
+        // h/2: a node carried a little forward stays), or h/4 of the Surface node.
         assert_eq!(shaft_edit(true, Shaft, 0.5, h), ShaftEdit::Keep);
-        assert_eq!(shaft_edit(true, Shaft, 0.49, h), ShaftEdit::LiftTip);
+        assert_eq!(shaft_edit(true, Shaft, 0.31, h), ShaftEdit::Keep);
+        assert_eq!(shaft_edit(true, Shaft, 0.29, h), ShaftEdit::LiftTip);
         assert_eq!(shaft_edit(true, Surface, 0.25, h), ShaftEdit::Keep);
         assert_eq!(shaft_edit(true, Surface, 0.24, h), ShaftEdit::LiftTip);
-        // Without the Tip node a Shaft node closer than h/2 goes; the Surface node only
+        // Without the Tip node a Shaft node closer than 0.3 h goes; the Surface node only
         // when the tip is back out past it.
-        assert_eq!(shaft_edit(false, Shaft, 0.49, h), ShaftEdit::RemoveShaft);
+        assert_eq!(shaft_edit(false, Shaft, 0.29, h), ShaftEdit::RemoveShaft);
         assert_eq!(shaft_edit(false, Surface, 0.0, h), ShaftEdit::Keep);
         assert_eq!(
             shaft_edit(false, Surface, -1e-12, h),

@@ -7,6 +7,7 @@
 //! the crack front, cutting) force of every other node. With the per-length model a node
 //! stands for the shaft length [`shaft_lengths`] gives it.
 
+use super::insertion::REMOVE;
 use super::{vec4, xyz, Simulation};
 use crate::config::Membrane;
 use crate::friction::{
@@ -67,7 +68,44 @@ impl Simulation {
             Phase::Exited => None,
             _ => Some(now.length()),
         };
-        shaft_lengths(s, &counted, end)
+        let mut l = shaft_lengths(s, &counted, end);
+        // With the per-length model the last Shaft node keeps only its share of its
+        // length; the node before it takes the rest ([`Simulation::update_shares`]).
+        let nodes = &self.state.nodes;
+        let last = nodes.iter().rposition(|n| n.role == NodeRole::Shaft);
+        if let (true, Some(k)) = (self.sheathed(), last) {
+            let before = (0..k).filter(|&j| counted[j]).max_by(|&a, &b| s[a].total_cmp(&s[b]));
+            if let Some(j) = before {
+                let keep = nodes[k].share;
+                l[j] += (1.0 - keep) * l[k];
+                l[k] *= keep;
+            }
+        }
+        l
+    }
+
+    /// The share of its length the last Shaft node keeps (per-length model): it follows
+    /// the tip's distance past the node, from 1 at h / 2 (where the node was added) to 0 at
+    /// the distance it is removed at, but changes by no more than the tip moved along the
+    /// needle this step allows (a node let go moves towards the tip, which would otherwise
+    /// hasten its own release). Other nodes keep their whole length.
+    fn update_shares(&mut self, s: &[f64], prev: &Needle, now: &Needle) {
+        let h = self.spacing;
+        let span = (0.5 - REMOVE) * h;
+        let moved = (DVec3::from(now.tip()) - DVec3::from(prev.tip()))
+            .dot(DVec3::from(now.direction()))
+            .abs();
+        let last = self.state.nodes.iter().rposition(|n| n.role == NodeRole::Shaft);
+        for (k, n) in self.state.nodes.iter_mut().enumerate() {
+            if Some(k) != last {
+                n.share = 1.0;
+                continue;
+            }
+            let d = now.length() - s[k];
+            let target = ((d - REMOVE * h) / span).clamp(0.0, 1.0);
+            let rate = moved / span;
+            n.share += (target - n.share).clamp(-rate, rate);
+        }
     }
 
     /// Friction on the needle nodes and the needle force (after the force evaluation).
@@ -122,6 +160,9 @@ impl Simulation {
             // The positions `constrain` wrote: the force evaluation does not move nodes.
             let p = std::mem::take(&mut self.state.positions);
             let s: Vec<f64> = p.iter().map(|x| (xyz(*x) - base).dot(t)).collect();
+            if sheathed {
+                self.update_shares(&s, prev, now);
+            }
             let lengths = self.node_lengths(&s, now);
             let tip_depth = self.depth_of(now.tip(), now.direction());
             // The tip cuts while it is at the deepest point it reached (the crack front).
@@ -362,6 +403,7 @@ impl Simulation {
                 FrictionState::Stick
             };
             n.sigma = c.s[k];
+            n.normal = normal.to_array();
             // The shaft takes the normal part; the node keeps its axial force plus the
             // needle's axial force on it.
             f[k] = vec4(t * (axial + on_node), 0.0);

@@ -49,21 +49,23 @@ impl Simulation {
         }
         let t = DVec3::from(now.direction());
         let n0 = self.editor.n_mesh();
-        let loads: Vec<f64> = (first..m).map(|k| self.carried_load(k, now, pos)).collect();
-        let scale = loads.iter().fold(0.0f64, |a, l| a.max(l.abs()));
+        // What each node's elastic force should be: the loads it carries along the needle
+        // balanced, and the normal force its share of the shaft had before the edit.
+        let targets: Vec<DVec3> = (first..m)
+            .map(|k| DVec3::from(self.state.nodes[k].normal) - t * self.carried_load(k, now, pos))
+            .collect();
+        let scale = targets.iter().fold(0.0f64, |a, l| a.max(l.length()));
         let mut rest: Vec<DVec3> = (first..m)
             .map(|k| DVec3::from(self.rest_of(self.state.nodes[k].index)))
             .collect();
-        // The residual of every node: its elastic force plus the loads it carries, axial
-        // (the loads are along the needle) and lateral (the shaft takes a lateral force; a
-        // new node should not bring one in with it).
+        // The residual of every node: its elastic force less its target.
         let residual = |sim: &mut Self| -> Result<Vec<DVec3>, SimulationError> {
             sim.backend.compute_forces();
             let mut f = vec![[0.0f32; 4]; m - first];
             sim.backend
                 .read(NodeField::Force, n0 + first..n0 + m, &mut f)
                 .map_err(|e| sim.edit(e.into()))?;
-            Ok(f.iter().zip(&loads).map(|(f, l)| xyz(*f) + t * *l).collect())
+            Ok(f.iter().zip(&targets).map(|(f, g)| xyz(*f) - *g).collect())
         };
         let size = |r: &[DVec3]| r.iter().fold(0.0f64, |a, x| a.max(x.length()));
         let mut r = residual(self)?;
