@@ -78,6 +78,10 @@ pub(crate) enum ShaftEdit {
 /// every step.
 pub(super) const REMOVE: f64 = 0.3;
 
+/// With the per-length model, the Tip node is taken off once the needle is pulled back
+/// this many spacings behind it (having handed its shaft length over meanwhile).
+pub(super) const TIP_SPAN: f64 = 0.1;
+
 /// The margins: `has_tip` whether the last node is the Tip node, `last` the role of the
 /// last other node, `d` the tip's axial distance past that node, `h` the node spacing.
 pub(crate) fn shaft_edit(has_tip: bool, last: NodeRole, d: f64, h: f64) -> ShaftEdit {
@@ -474,15 +478,6 @@ impl Simulation {
         let mut pos = read.positions;
         // The shaft's friction before any edit, to carry over to the nodes after them.
         let field = self.friction_field(&pos, now);
-        let dbg_before = if std::env::var("NS_EVENT").is_ok() {
-            self.backend.compute_forces();
-            let n = self.editor.n_mesh();
-            let mut f = vec![[0.0f32; 4]; n];
-            self.backend.read(NodeField::Force, 0..n, &mut f).unwrap();
-            Some(f)
-        } else {
-            None
-        };
         self.low_water = self.state.nodes.len();
         // The velocities read, until the first edit.
         let mut known = Some(read.velocities);
@@ -522,7 +517,7 @@ impl Simulation {
             let behind = sheathed
                 && has_tip
                 && !advancing
-                && (pos[nodes.len() - 1] - base).dot(t) > now.length();
+                && nodes[nodes.len() - 1].share == 0.0;
             // With the per-length model a Shaft node the tip is pulled back over is
             // removed once it has handed its shaft length over (its share is 0), or once
             // the tip is behind it.
@@ -677,31 +672,8 @@ impl Simulation {
         }
         if edited && self.sheathed() {
             self.reassign_friction(&field, &pos, now);
+            // The new nodes are placed in equilibrium.
             self.settle(self.low_water, now, &pos)?;
-            if let Some(b) = dbg_before {
-                self.backend.compute_forces();
-                let n = self.editor.n_mesh();
-                let mut f = vec![[0.0f32; 4]; n];
-                self.backend.read(NodeField::Force, 0..n, &mut f).unwrap();
-                let d: Vec<f64> = b.iter().zip(&f).map(|(a, c)| (xyz(*a) - xyz(*c)).length()).collect();
-                let mut idx: Vec<usize> = (0..n).collect();
-                idx.sort_by(|&x, &y| d[y].total_cmp(&d[x]));
-                let tot: f64 = d.iter().sum();
-                let axsum: f64 = b.iter().zip(&f).map(|(a, c)| (xyz(*c) - xyz(*a)).dot(t)).sum();
-                let m = self.state.nodes.len();
-                let mut fnn = vec![[0.0f32; 4]; m];
-                self.backend.read(NodeField::Force, n..n + m, &mut fnn).unwrap();
-                eprintln!(
-                    "event step {} nodes {} low {} sum|df| {:.4} sum axial df {:.4} top {:?} needle f {:?}",
-                    self.stepper.steps(),
-                    m,
-                    self.low_water,
-                    tot,
-                    axsum,
-                    idx[..5].iter().map(|&i| (i, (d[i] * 1e4).round() / 1e4)).collect::<Vec<_>>(),
-                    fnn.iter().map(|f| ((xyz(*f).dot(t) * 1e4).round() / 1e4)).collect::<Vec<_>>()
-                );
-            }
         }
         // What the needle nodes' positions (and, without edits, velocities) are now, so
         // that `constrain` need not read them back again.

@@ -7,7 +7,7 @@
 //! the crack front, cutting) force of every other node. With the per-length model a node
 //! stands for the shaft length [`shaft_lengths`] gives it.
 
-use super::insertion::REMOVE;
+use super::insertion::{REMOVE, TIP_SPAN};
 use super::{vec4, xyz, Simulation};
 use crate::config::Membrane;
 use crate::friction::{
@@ -72,7 +72,7 @@ impl Simulation {
         // With the per-length model the last Shaft node keeps only its share of its
         // length; the node before it takes the rest ([`Simulation::update_shares`]).
         let nodes = &self.state.nodes;
-        let last = nodes.iter().rposition(|n| n.role == NodeRole::Shaft);
+        let last = nodes.len().checked_sub(1);
         if let (true, Some(k)) = (self.sheathed(), last) {
             let before = (0..k).filter(|&j| counted[j]).max_by(|&a, &b| s[a].total_cmp(&s[b]));
             if let Some(j) = before {
@@ -84,25 +84,36 @@ impl Simulation {
         l
     }
 
-    /// The share of its length the last Shaft node keeps (per-length model): it follows
-    /// the tip's distance past the node, from 1 at h / 2 (where the node was added) to 0 at
-    /// the distance it is removed at, but changes by no more than the tip moved along the
-    /// needle this step allows (a node let go moves towards the tip, which would otherwise
-    /// hasten its own release). Other nodes keep their whole length.
+    /// The share of its length the newest needle node keeps (per-length model), while
+    /// the needle is pulled back over it: a Shaft node's follows the tip's distance past
+    /// it, from 1 at h / 2 (where it was added) to 0 at the distance it is removed at; the
+    /// Tip node's from 1 with the tip at it to 0 a tenth of a spacing behind it (where it
+    /// is taken off). It changes by no more than the tip moved along the needle this step
+    /// allows (a node let go moves towards the tip, which would otherwise hasten its own
+    /// release). The node before takes the rest ([`Simulation::node_lengths`]); every
+    /// other node keeps its whole length.
     fn update_shares(&mut self, s: &[f64], prev: &Needle, now: &Needle) {
         let h = self.spacing;
-        let span = (0.5 - REMOVE) * h;
         let moved = (DVec3::from(now.tip()) - DVec3::from(prev.tip()))
             .dot(DVec3::from(now.direction()))
             .abs();
-        let last = self.state.nodes.iter().rposition(|n| n.role == NodeRole::Shaft);
+        let m = self.state.nodes.len();
         for (k, n) in self.state.nodes.iter_mut().enumerate() {
-            if Some(k) != last {
-                n.share = 1.0;
-                continue;
-            }
             let d = now.length() - s[k];
-            let target = ((d - REMOVE * h) / span).clamp(0.0, 1.0);
+            let (target, span) = match n.role {
+                NodeRole::Shaft if k + 1 == m => {
+                    let span = (0.5 - REMOVE) * h;
+                    (((d - REMOVE * h) / span).clamp(0.0, 1.0), span)
+                }
+                NodeRole::Tip => {
+                    let span = TIP_SPAN * h;
+                    (((d + span) / span).clamp(0.0, 1.0), span)
+                }
+                _ => {
+                    n.share = 1.0;
+                    continue;
+                }
+            };
             let rate = moved / span;
             n.share += (target - n.share).clamp(-rate, rate);
         }

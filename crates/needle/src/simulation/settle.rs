@@ -26,10 +26,11 @@ use crate::nodes::NodeRole;
 use crate::state::Phase;
 use crate::SimulationError;
 use glam::DVec3;
+use nalgebra::{DMatrix, DVector};
 use needlesim_core::NodeField;
 
 /// Most force evaluations spent on one edit.
-const MAX_EVALUATIONS: usize = 5;
+const MAX_EVALUATIONS: usize = 8;
 /// Relative residual at which a node counts as settled (of the largest load, or of the
 /// force scale when every load is near zero).
 const TOLERANCE: f64 = 0.01;
@@ -75,49 +76,69 @@ impl Simulation {
             return Ok(());
         }
         // Probe: every node's rest moved a thousandth of a spacing forward gives its
-        // stiffness against its own rest position (taken the same in every direction
-        // until the secant steps below refine it per direction).
+        // stiffness against its own rest position, taken the same in every direction to
+        // start Broyden's method (the nodes an edit adds are neighbours, so their
+        // residuals are coupled; Broyden's rank-one updates learn the coupling from the
+        // steps taken, one force evaluation each).
         let eps = 1e-3 * self.spacing;
         let probe: Vec<DVec3> = rest.iter().map(|x| *x + t * eps).collect();
         self.replace_rest(first, &probe)?;
         let r1 = residual(self)?;
-        let mut stiffness: Vec<DVec3> = r1
-            .iter()
-            .zip(&r)
-            .map(|(a, b)| DVec3::splat((*a - *b).dot(t) / eps))
-            .collect();
+        let n = 3 * (m - first);
+        let mut jac = DMatrix::<f64>::zeros(n, n);
+        for (k, (a, b)) in r1.iter().zip(&r).enumerate() {
+            let stiff = (*a - *b).dot(t) / eps;
+            // A node that does not answer its rest position (or answers the wrong way) is
+            // given the stiffness of the best-behaved one.
+            let stiff = if stiff > 0.0 { stiff } else { f64::NAN };
+            for c in 0..3 {
+                jac[(3 * k + c, 3 * k + c)] = stiff;
+            }
+        }
+        let good = (0..n).map(|i| jac[(i, i)]).filter(|x| x.is_finite()).fold(0.0, f64::max);
+        if good <= 0.0 {
+            return Ok(());
+        }
+        for i in 0..n {
+            if !jac[(i, i)].is_finite() {
+                jac[(i, i)] = good;
+            }
+        }
         rest = probe;
         r = r1;
+        let flat = |r: &[DVec3]| DVector::from_iterator(n, r.iter().flat_map(|x| x.to_array()));
         let limit = 0.5 * self.spacing;
         for _ in 2..MAX_EVALUATIONS {
             if size(&r) <= tol {
                 break;
             }
-            // Newton with the measured (diagonal) stiffness; a component whose force does
-            // not answer its rest position is left where it is.
-            let step: Vec<DVec3> = r
+            let rv = flat(&r);
+            let Some(step) = jac.clone().lu().solve(&(-&rv)) else {
+                break;
+            };
+            let step = step.map(|d| d.clamp(-limit, limit));
+            let next: Vec<DVec3> = rest
                 .iter()
-                .zip(&stiffness)
-                .map(|(r, k)| {
-                    let d = |r: f64, k: f64| if k > 0.0 { (-r / k).clamp(-limit, limit) } else { 0.0 };
-                    DVec3::new(d(r.x, k.x), d(r.y, k.y), d(r.z, k.z))
-                })
+                .enumerate()
+                .map(|(k, x)| *x + DVec3::new(step[3 * k], step[3 * k + 1], step[3 * k + 2]))
                 .collect();
-            let next: Vec<DVec3> = rest.iter().zip(&step).map(|(x, d)| *x + *d).collect();
             self.replace_rest(first, &next)?;
             let r2 = residual(self)?;
-            for k in 0..stiffness.len() {
-                for c in 0..3 {
-                    if step[k][c].abs() > 1e-9 * self.spacing {
-                        let secant = (r2[k][c] - r[k][c]) / step[k][c];
-                        if secant > 0.0 {
-                            stiffness[k][c] = secant;
-                        }
-                    }
-                }
+            if std::env::var("NS_SETTLE").is_ok() {
+                eprintln!("  iter res {:.3e} -> {:.3e}", size(&r), size(&r2));
+            }
+            // Good Broyden: J += (dr - J dx) dx^T / (dx . dx).
+            let dr = flat(&r2) - rv;
+            let dd = step.dot(&step);
+            if dd > 0.0 {
+                let u = (dr - &jac * &step) / dd;
+                jac += u * step.transpose();
             }
             rest = next;
             r = r2;
+        }
+        if std::env::var("NS_SETTLE").is_ok() {
+            eprintln!("settle step {} first {first} m {m} tol {tol:.2e} res {:.2e}", self.stepper.steps(), size(&r));
         }
         Ok(())
     }
