@@ -13,8 +13,10 @@
 //! puncture_force = 2.0           # N: puncture by force instead of the cone angle
 //! contact_radius = 0.003         # m, the surface that carries the tip's load before
 //!                                # puncture (default: the needle radius)
-//! tear_length = 0.00127          # m of advance over which a membrane that gave lets go
-//!                                # of its load (default: the needle's diameter)
+//! point_length = 0.0039         # m: length of the needle's point; a membrane that gave
+//!                                # lets go of its load, and the cutting force builds up,
+//!                                # while the point passes (default: an 18-degree bevel,
+//!                                # diameter / tan 18 deg)
 //! friction = { coefficient = 0.3, grip = 40.0 }      # per unit length (default model)
 //! # friction = { model = "paper", static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
 //!
@@ -73,10 +75,14 @@ pub struct NeedleConfig {
     /// modulus it sets the dent: a rigid flat punch of this radius on a half-space.
     #[serde(default)]
     pub contact_radius: Option<f64>,
-    /// Advance of the crack front over which a membrane that gave releases its load, m
-    /// (per-length model; default: the needle's diameter, the hole opening to the shaft).
+    /// Length of the needle's point (its bevel), m (per-length model, [`crate::sheath`]):
+    /// a membrane that gave lets go of its load while the point passes through it (the
+    /// hole opens to the shaft's diameter), and the cutting force builds up over it when
+    /// the tip starts cutting (and lets go over it when the tip is pulled back). Default:
+    /// an 18-degree bevel (a Quincke-type spinal or biopsy point),
+    /// `2 radius / tan(18 deg)`, 3.9 mm for an 18 G needle.
     #[serde(default)]
-    pub tear_length: Option<f64>,
+    pub point_length: Option<f64>,
     /// Stick-slip friction (read from the `friction` table by [`FrictionModel::from_value`]).
     #[serde(skip)]
     pub friction: FrictionModel,
@@ -139,6 +145,12 @@ struct RegionNeedleKeys {
 
 fn default_tip_refresh() -> f64 {
     0.1
+}
+
+/// Length of an 18-degree bevel on a needle of radius `radius`: `2 radius / tan 18 deg`
+/// (m).
+pub fn default_point_length(radius: f64) -> f64 {
+    2.0 * radius / 18f64.to_radians().tan()
 }
 
 /// An 18 G needle: 1.27 mm outer diameter.
@@ -212,7 +224,7 @@ impl NeedleConfig {
         }
         for (key, v) in [
             ("needle.contact_radius", self.contact_radius),
-            ("needle.tear_length", self.tear_length),
+            ("needle.point_length", self.point_length),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
@@ -247,9 +259,10 @@ impl NeedleConfig {
         self.contact_radius.unwrap_or(self.radius)
     }
 
-    /// Tear length (m): `tear_length`, or the needle's diameter.
-    pub fn tear_length(&self) -> f64 {
-        self.tear_length.unwrap_or(2.0 * self.radius)
+    /// Point length (m): `point_length`, or that of an 18-degree bevel.
+    pub fn point_length(&self) -> f64 {
+        self.point_length
+            .unwrap_or_else(|| default_point_length(self.radius))
     }
 
     /// The needle's parameters in region `name` from its `needle` table (`None`: the

@@ -95,8 +95,9 @@ struct Contact {
     refresh: f64,
     /// Needle radius, m.
     radius: f64,
-    /// Advance over which a membrane that gave releases its load, m.
-    tear_length: f64,
+    /// Length of the needle's point: a membrane that gave releases its load, and the
+    /// cutting force builds up, over it, m.
+    point_length: f64,
 }
 
 impl Contact {

@@ -57,6 +57,11 @@ pub(crate) struct NeedleState {
     pub read_velocities: Vec<Vec4>,
     /// Where the Tip node was last placed.
     pub tip_placed: [f64; 3],
+    /// How far the tip advanced along the needle this step, m (its depth past the entry
+    /// point now less then: a turn about the entry point advances nothing). Set at the
+    /// start of a step.
+    #[serde(skip)]
+    pub advance: f64,
     /// The tip at the start of this step's sweep.
     pub swept_from: [f64; 3],
     /// Where the tip first touched the surface.
@@ -109,6 +114,7 @@ impl NeedleState {
             positions: Vec::new(),
             read_velocities: Vec::new(),
             tip_placed: [0.0; 3],
+            advance: 0.0,
             swept_from: [0.0; 3],
             entry: None,
             cut_depth: f64::NEG_INFINITY,

@@ -333,6 +333,8 @@ impl Simulation {
         let tip = DVec3::from(now.tip());
         let v_tip = self.needle_velocity(prev, now, now.length());
         self.state.swept_from = prev.tip();
+        self.state.advance = self.depth_of(now.tip(), now.direction())
+            - self.depth_of(prev.tip(), prev.direction());
         if self.state.phase != Phase::Outside {
             self.check_motion(prev, now, None)?;
         }
@@ -405,7 +407,7 @@ impl Simulation {
                         self.state.cut_depth = self.depth_of(now.tip(), now.direction());
                         // The entry membrane tears: the patch lets go of its load over
                         // the tear length (and the cutting element starts from nothing).
-                        let (cut, length) = (self.state.cut_depth, self.contact.tear_length);
+                        let (cut, length) = (self.state.cut_depth, self.contact.point_length);
                         if let Some(p) = self.state.patch.as_mut() {
                             p.tear = Some(Tear {
                                 from: p.force,
@@ -458,7 +460,7 @@ impl Simulation {
         let base = DVec3::from(now.base());
         // Advancing: the tip moved forward along the needle this step (by more than
         // rounding: a rotation about the entry point moves it sideways only).
-        let advancing = v_tip.dot(t) * self.stepper.dt() > 1e-12;
+        let advancing = self.state.advance > 1e-12;
         let per_length = self.contact.per_length().is_some();
         let sheathed = self.sheathed();
         // The far-side test for the needle nodes as they are: the corners of its candidate
@@ -628,7 +630,9 @@ impl Simulation {
             (true, Some(x)) => now.length() - (*x - base).dot(t),
             _ => (tip - DVec3::from(self.state.tip_placed)).length(),
         };
-        if has_tip && !edited && moved > self.contact.refresh {
+        // (With the per-length model only while the tip advances: a Tip node the tissue
+        // pushes back along a needle that turns or stands cuts nothing new.)
+        if has_tip && !edited && moved > self.contact.refresh && (advancing || !sheathed) {
             // The refreshed Tip node keeps the load it carried: its friction state and,
             // with the per-length model, the tissue's velocity and the material at the
             // tip, so the load ahead of the tip is carried on, not released.

@@ -438,13 +438,12 @@ impl Simulation {
     /// One step of the tip's element at the crack front ([`crate::sheath::FrontElement`]),
     /// the front node having moved `ds` along the needle; returns its force on the node
     /// (along the needle). It cuts with at most the region's cutting force, building up
-    /// over one needle radius of advance; dents a membrane up to its puncture force (with
+    /// over the point's length of advance; dents a membrane up to its puncture force (with
     /// the stiffness of a punch of the membrane's contact radius), then the membrane gives
     /// and tears; and it lets go of the crack front over the same length when the tip is
     /// pulled back from it (the cap falls linearly to zero over that retraction), pushing
     /// nothing in a track already cut.
     fn front_step(&mut self, c: &Step, ds: f64, layer: super::Layer) -> f64 {
-        let a = self.contact.radius;
         let cut = self.state.cut_depth;
         let mut front = self.state.front;
         if front.tear.is_some_and(|t| t.done(cut)) {
@@ -454,7 +453,7 @@ impl Simulation {
             .state
             .denting
             .map(|r| (r, self.contact.layers[r as usize]));
-        let cutting_stiffness = layer.cutting / a;
+        let cutting_stiffness = layer.cutting / self.contact.point_length;
         let (stiffness, cap) = match (front.tear, denting) {
             (Some(tear), _) => (cutting_stiffness, tear.cap(cut)),
             (None, Some((_, l))) => {
@@ -468,10 +467,10 @@ impl Simulation {
             (None, None) => (cutting_stiffness, layer.cutting),
         };
         // Engaged with the crack front while the tip is within the element's compression
-        // at full load behind it (a needle radius when cutting).
+        // at full load behind it (the point's length when cutting).
         let reach = match (cap.is_finite() && stiffness > 0.0, cap > 0.0) {
             (true, true) => cap / stiffness,
-            _ => a,
+            _ => self.contact.point_length,
         };
         let engaged = ((c.tip_depth - (cut - reach)) / reach).clamp(0.0, 1.0);
         front.force = front_step(front.force, -stiffness * ds, cap * engaged);
@@ -485,7 +484,7 @@ impl Simulation {
                     from: front.force,
                     to: l.cutting,
                     at: cut,
-                    length: self.contact.tear_length,
+                    length: self.contact.point_length,
                 });
             } else if !c.cutting && front.force == 0.0 {
                 // Pulled back off the membrane.

@@ -63,7 +63,7 @@ impl Prepared {
                     puncture_force: c.puncture_force,
                     refresh: c.tip_refresh * self.spacing,
                     radius: c.radius,
-                    tear_length: c.tear_length(),
+                    point_length: c.point_length(),
                 },
             ),
             None => (
@@ -76,7 +76,7 @@ impl Prepared {
                     puncture_force: None,
                     refresh: 0.1 * self.spacing,
                     radius: crate::config::RADIUS_18G,
-                    tear_length: 2.0 * crate::config::RADIUS_18G,
+                    point_length: crate::config::default_point_length(crate::config::RADIUS_18G),
                 },
             ),
         };

@@ -70,6 +70,9 @@ impl Simulation {
         };
         let size = |r: &[DVec3]| r.iter().fold(0.0f64, |a, x| a.max(x.length()));
         let mut r = residual(self)?;
+        if std::env::var("NS_SETTLE").is_ok() {
+            eprintln!("  targets {:?} r0 {:?}", targets.iter().map(|x| x.to_array().map(|v| (v*1e3).round()/1e3)).collect::<Vec<_>>(), r.iter().map(|x| x.to_array().map(|v| (v*1e3).round()/1e3)).collect::<Vec<_>>());
+        }
         // The force scale when the loads are small: what the tissue pushes with now.
         let tol = TOLERANCE * scale.max(0.1 * size(&r));
         if size(&r) <= tol {
@@ -106,6 +109,8 @@ impl Simulation {
         }
         rest = probe;
         r = r1;
+        // The best placement seen, kept if the iteration does not converge.
+        let mut best = (size(&r), rest.clone());
         let flat = |r: &[DVec3]| DVector::from_iterator(n, r.iter().flat_map(|x| x.to_array()));
         let limit = 0.5 * self.spacing;
         for _ in 2..MAX_EVALUATIONS {
@@ -136,6 +141,12 @@ impl Simulation {
             }
             rest = next;
             r = r2;
+            if size(&r) < best.0 {
+                best = (size(&r), rest.clone());
+            }
+        }
+        if size(&r) > best.0 {
+            self.replace_rest(first, &best.1)?;
         }
         if std::env::var("NS_SETTLE").is_ok() {
             eprintln!("settle step {} first {first} m {m} tol {tol:.2e} res {:.2e}", self.stepper.steps(), size(&r));
