@@ -62,6 +62,11 @@ enum Command {
         /// Full size (resolutions up to about 12,000 nodes; long) instead of the reduced one.
         #[arg(long)]
         full: bool,
+        /// Only the needle force realism section (every shipped needle scene audited,
+        /// friction off, spacing, model, speed and spin studies of the liver scene):
+        /// writes realism.md, realism.csv and its plots.
+        #[arg(long)]
+        realism: bool,
         /// Backends to time every case on, comma separated [default: cpu,cpu-parallel and
         /// gpu when an adapter is found].
         #[arg(long, value_delimiter = ',', value_parser = parse_backend)]
@@ -246,7 +251,29 @@ fn run(cli: Cli) -> Result<()> {
         Command::Report {
             out,
             full,
+            realism: true,
+            ..
+        } => {
+            let out = out.unwrap_or_else(|| PathBuf::from("out/report"));
+            let mut pipe: std::io::Result<()> = Ok(());
+            let r = needlesim_report::realism::run_and_write(full, &out, &mut |line| {
+                if pipe.is_ok() {
+                    pipe = say!("{line}");
+                }
+            });
+            pipe?;
+            let r = r?;
+            say!(
+                "report      {} ({:.0} s): realism.md, realism.csv, realism_spacing.png, realism_models.png",
+                out.display(),
+                r.seconds
+            )?;
+        }
+        Command::Report {
+            out,
+            full,
             backends,
+            ..
         } => {
             use needlesim_report::{run_report, ReportOptions, ReportSize};
             let timing_backends = if backends.is_empty() {

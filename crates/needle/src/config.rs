@@ -17,6 +17,8 @@
 //!                                # lets go of its load, and the cutting force builds up,
 //!                                # while the point passes (default: an 18-degree bevel,
 //!                                # diameter / tan 18 deg)
+//! tear_time = 0.01               # s: a membrane that gave lets go of its load within
+//!                                # this time at most (default 10 ms)
 //! friction = { coefficient = 0.3, grip = 40.0 }      # per unit length (default model)
 //! # friction = { model = "paper", static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
 //!
@@ -83,6 +85,10 @@ pub struct NeedleConfig {
     /// `2 radius / tan(18 deg)`, 3.9 mm for an 18 G needle.
     #[serde(default)]
     pub point_length: Option<f64>,
+    /// Time within which a membrane that gave lets go of the load it carried beyond the
+    /// cutting force, s (per-length model; default 10 ms, [`crate::sheath::Tear`]).
+    #[serde(default)]
+    pub tear_time: Option<f64>,
     /// Stick-slip friction (read from the `friction` table by [`FrictionModel::from_value`]).
     #[serde(skip)]
     pub friction: FrictionModel,
@@ -225,12 +231,13 @@ impl NeedleConfig {
         for (key, v) in [
             ("needle.contact_radius", self.contact_radius),
             ("needle.point_length", self.point_length),
+            ("needle.tear_time", self.tear_time),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
                     return Err(SceneError::invalid(
                         key,
-                        format!("must be a finite number > 0 (m), got {v}"),
+                        format!("must be a finite number > 0, got {v}"),
                     ));
                 }
             }
@@ -257,6 +264,11 @@ impl NeedleConfig {
     /// Contact radius before puncture (m): `contact_radius`, or the needle's radius.
     pub fn contact_radius(&self) -> f64 {
         self.contact_radius.unwrap_or(self.radius)
+    }
+
+    /// Tear time (s): `tear_time`, or 10 ms.
+    pub fn tear_time(&self) -> f64 {
+        self.tear_time.unwrap_or(0.03)
     }
 
     /// Point length (m): `point_length`, or that of an 18-degree bevel.

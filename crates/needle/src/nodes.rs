@@ -78,6 +78,11 @@ pub struct NeedleForce {
     /// model).
     #[serde(default)]
     pub torque: f64,
+    /// The part of the axial force the tip's elements carry, N (per-length model: the
+    /// cutting force, a membrane being dented or torn, the contact patch before the entry
+    /// punctures; the rest of `axial` is the shaft's friction).
+    #[serde(default)]
+    pub tip: f64,
 }
 
 /// One step of the needle's record.

@@ -98,6 +98,8 @@ struct Contact {
     /// Length of the needle's point: a membrane that gave releases its load, and the
     /// cutting force builds up, over it, m.
     point_length: f64,
+    /// Most time a membrane that gave takes to let go of its load, s.
+    tear_time: f64,
 }
 
 impl Contact {

@@ -25,4 +25,7 @@ pub enum ReportError {
     /// The reference data shipped with needlesim is malformed.
     #[error("reference data: {0}")]
     Reference(String),
+    /// A shipped scene the report varies cannot be read or changed.
+    #[error("scene: {0}")]
+    Scene(String),
 }

@@ -23,6 +23,7 @@ pub mod fem;
 pub mod needle;
 pub mod needle_plots;
 pub mod plot;
+pub mod realism;
 pub mod stable_dt;
 
 use crate::plot::{plot, Axes, Labels, Series};
@@ -82,6 +83,8 @@ pub struct ReportSummary {
     pub extreme: Vec<ExtremeResult>,
     /// The needle section.
     pub needle: needle::NeedleReport,
+    /// The needle force realism section.
+    pub realism: realism::Realism,
     /// Wall time of the whole report.
     pub elapsed: Duration,
 }
@@ -259,12 +262,14 @@ pub fn run_report(
         }
     }
     let needle = needle::run_needle(options.size == ReportSize::Full, &mut progress)?;
+    let realism = realism::run_realism(options.size == ReportSize::Full, &mut progress)?;
     let summary = ReportSummary {
         accuracy,
         timing,
         stable,
         extreme,
         needle,
+        realism,
         elapsed: start.elapsed(),
     };
     write_all(options, &summary)?;
@@ -365,6 +370,7 @@ fn write_all(options: &ReportOptions, s: &ReportSummary) -> Result<(), ReportErr
     write(&out.join("extreme.csv"), &csv)?;
     plots(out, s)?;
     needle::write_needle(out, &s.needle).map_err(io(out))?;
+    realism::write_realism(out, &s.realism).map_err(io(out))?;
     write(&out.join("report.md"), &markdown(options, s))
 }
 
@@ -708,5 +714,6 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
         writeln!(md).unwrap();
     }
     needle::markdown(&mut md, &s.needle);
+    realism::markdown(&mut md, &s.realism);
     md
 }

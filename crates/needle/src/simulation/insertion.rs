@@ -405,18 +405,27 @@ impl Simulation {
                         self.state.punctured.push(pinned_region as u16);
                         self.state.nodes[0].friction = FrictionState::Slip;
                         self.state.cut_depth = self.depth_of(now.tip(), now.direction());
-                        // The entry membrane tears: the patch lets go of its load over
-                        // the tear length (and the cutting element starts from nothing).
-                        let (cut, length) = (self.state.cut_depth, self.contact.point_length);
+                        // The entry membrane tears: the tip carries on with the cutting
+                        // force at once (it was pressing harder than that), and the patch
+                        // lets go of the rest over the tear ([`sheath::Tear`]).
+                        let cut = self.state.cut_depth;
+                        let cutting = self.contact.layers[pinned_region].cutting;
+                        let (length, time) = (self.contact.point_length, self.contact.tear_time);
+                        let started = self.stepper.time();
+                        let mut front = sheath::FrontElement::default();
                         if let Some(p) = self.state.patch.as_mut() {
+                            front.force = cutting.min(p.force);
+                            p.force -= front.force;
                             p.tear = Some(Tear {
                                 from: p.force,
                                 to: 0.0,
                                 at: cut,
                                 length,
+                                started,
+                                time,
                             });
                         }
-                        self.state.front = Default::default();
+                        self.state.front = front;
                         self.inside(now, v_tip)?;
                     }
                     (TouchingOutcome::Puncture, true) => {
@@ -481,6 +490,9 @@ impl Simulation {
         // The shaft's friction before any edit, to carry over to the nodes after them.
         let field = self.friction_field(&pos, now);
         self.low_water = self.state.nodes.len();
+        // A Tip node taken off for being ahead of the tip this step.
+        let mut dropped_ahead = false;
+        let denting_membrane = sheathed && self.state.denting.is_some();
         // The velocities read, until the first edit.
         let mut known = Some(read.velocities);
         let mut edited = false;
@@ -516,10 +528,16 @@ impl Simulation {
             // With the per-length model the Tip node marks the crack front: it is taken
             // off (and not put back) once the needle is pulled back behind it, and put on
             // again only when the needle advances.
+            // A Tip node the tissue has carried more than a refresh distance ahead of the
+            // advancing tip (springing back after a puncture) holds no crack front: it is
+            // taken off, and put on at the tip again from the next step.
+            let ahead = sheathed
+                && has_tip
+                && advancing
+                && (pos[nodes.len() - 1] - base).dot(t) > now.length() + self.contact.refresh;
             let behind = sheathed
                 && has_tip
-                && !advancing
-                && nodes[nodes.len() - 1].share == 0.0;
+                && ((!advancing && nodes[nodes.len() - 1].share == 0.0) || ahead);
             // With the per-length model a Shaft node the tip is pulled back over is
             // removed once it has handed its shaft length over (its share is 0), or once
             // the tip is behind it.
@@ -531,10 +549,15 @@ impl Simulation {
                 (true, true) => ShaftEdit::LiftTip,
                 (true, false) => ShaftEdit::RemoveShaft,
                 (false, _) if behind => ShaftEdit::LiftTip,
+                // While the Tip node dents an inner membrane it stays where the membrane
+                // holds it (behind the tip by the dent): no Shaft node goes in behind it
+                // until the membrane gives.
+                (false, true) if denting_membrane && d >= 1.5 * h => ShaftEdit::Keep,
                 (false, _) => match shaft_edit(has_tip, role, d_edit, h) {
                     ShaftEdit::AddTip | ShaftEdit::AddShaft if sheathed && !advancing => {
                         ShaftEdit::Keep
                     }
+                    ShaftEdit::AddTip if dropped_ahead => ShaftEdit::Keep,
                     e => e,
                 },
             };
@@ -542,6 +565,7 @@ impl Simulation {
                 ShaftEdit::LiftTip if behind => {
                     self.remove().map_err(|e| self.edit(e))?;
                     pos.pop();
+                    dropped_ahead = ahead;
                 }
                 ShaftEdit::LiftTip => {
                     // Taken off to edit the shaft behind it: re-added below with its load.
@@ -623,16 +647,20 @@ impl Simulation {
             .nodes
             .last()
             .is_some_and(|n| n.role == NodeRole::Tip);
-        // How far the Tip node is from the tip: with the per-length model, along the
-        // needle (the tip cuts past the Tip node's material; turning the needle sideways
-        // carries the Tip node with it and cuts nothing); with the paper's, since placed.
+        // How far the Tip node is from the tip: with the per-length model, how far the tip
+        // has cut past it along the needle (turning the needle sideways carries the Tip
+        // node with it and cuts nothing); with the paper's, since placed.
         let moved = match (self.sheathed(), pos.last()) {
             (true, Some(x)) => now.length() - (*x - base).dot(t),
             _ => (tip - DVec3::from(self.state.tip_placed)).length(),
         };
         // (With the per-length model only while the tip advances: a Tip node the tissue
         // pushes back along a needle that turns or stands cuts nothing new.)
-        if has_tip && !edited && moved > self.contact.refresh && (advancing || !sheathed) {
+        // (Nor while the Tip node dents an inner membrane: it is the membrane the tip
+        // presses on, not tissue the tip cuts.)
+        let denting = sheathed && self.state.denting.is_some();
+        if has_tip && !edited && moved > self.contact.refresh && (advancing || !sheathed) && !denting
+        {
             // The refreshed Tip node keeps the load it carried: its friction state and,
             // with the per-length model, the tissue's velocity and the material at the
             // tip, so the load ahead of the tip is carried on, not released.

@@ -124,6 +124,7 @@ impl Simulation {
         let m = self.state.nodes.len();
         let mut total = DVec3::ZERO;
         let mut torque = 0.0;
+        let mut tip = 0.0;
         let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
         let sheathed = self.sheathed();
         self.state.pinned_axial = 0.0;
@@ -184,7 +185,12 @@ impl Simulation {
             // the tip (it slips behind the tip while cutting); its region.
             let material = match front < m {
                 true => {
-                    let (x_front, tip) = (xyz(p[front]), DVec3::from(now.tip()));
+                    // The point the tip presses on: the tip, or while it dents an inner
+                    // membrane the bottom of the membrane's dent in the resolved tissue.
+                    let (x_front, tip) = (
+                        xyz(p[front]),
+                        DVec3::from(now.tip()) - t * self.state.front.dent,
+                    );
                     self.fit_around(tip, &around, &near).map(|fit| {
                         let x0 = DVec3::from(self.rest_of(self.state.nodes[front].index))
                             + fit.gradient * (tip - x_front);
@@ -223,7 +229,22 @@ impl Simulation {
                                 self.state.denting = Some(r);
                             }
                         }
-                        _ => self.state.region = Some(r),
+                        _ => {
+                            self.state.region = Some(r);
+                            // The cutting force passes to the new region's as the point
+                            // crosses the interface.
+                            if sheathed && cutting {
+                                let f = &mut self.state.front;
+                                f.tear = Some(Tear {
+                                    from: f.force,
+                                    to: self.contact.layers[r as usize].cutting,
+                                    at: self.state.cut_depth,
+                                    length: self.contact.point_length,
+                                    started: 0.0,
+                                    time: f64::INFINITY,
+                                });
+                            }
+                        }
                     }
                 }
             }
@@ -238,6 +259,8 @@ impl Simulation {
             };
             if sheathed {
                 self.sheath_forces(&ctx, &mut f, &patch_pos, &mut total, &mut torque)?;
+                tip = self.state.patch.as_ref().map_or(0.0, |p| p.force)
+                    + if front < m { self.state.front.force } else { 0.0 };
             } else {
                 self.paper_forces(&ctx, &mut f, &mut total);
             }
@@ -249,6 +272,7 @@ impl Simulation {
             axial: -along,
             lateral: (total - t * along).length(),
             torque,
+            tip,
         };
         Ok(())
     }
@@ -321,8 +345,9 @@ impl Simulation {
                     .zip(patch_pos)
                     .map(|(w, x)| w * (xyz(*x) - base).dot(t))
                     .sum::<f64>();
+            let now = self.stepper.time();
             let cap = match patch.tear {
-                Some(tear) => tear.cap(self.state.cut_depth),
+                Some(tear) => tear.cap(self.state.cut_depth, now),
                 None => self.entry_puncture_force().unwrap_or(f64::INFINITY),
             };
             let moved = patch.mean.map_or(0.0, |m| mean - m);
@@ -349,7 +374,7 @@ impl Simulation {
             *total -= t * (patch.force * (1.0 - patch.surface));
             let gone = patch
                 .tear
-                .is_some_and(|tear| tear.done(self.state.cut_depth) && patch.force == 0.0);
+                .is_some_and(|tear| tear.done(self.state.cut_depth, now) && patch.force == 0.0);
             if !gone {
                 self.state.patch = Some(patch);
             }
@@ -446,16 +471,23 @@ impl Simulation {
     fn front_step(&mut self, c: &Step, ds: f64, layer: super::Layer) -> f64 {
         let cut = self.state.cut_depth;
         let mut front = self.state.front;
-        if front.tear.is_some_and(|t| t.done(cut)) {
+        let now = self.stepper.time();
+        if front.tear.is_some_and(|t| t.done(cut, now)) {
             front.tear = None;
         }
         let denting = self
             .state
             .denting
             .map(|r| (r, self.contact.layers[r as usize]));
-        let cutting_stiffness = layer.cutting / self.contact.point_length;
+        // The cutting force of the region the crack front is in (that of the front node's
+        // until the tip has a region).
+        let cutting = self
+            .state
+            .region
+            .map_or(layer.cutting, |r| self.contact.layers[r as usize].cutting);
+        let cutting_stiffness = cutting / self.contact.point_length;
         let (stiffness, cap) = match (front.tear, denting) {
-            (Some(tear), _) => (cutting_stiffness, tear.cap(cut)),
+            (Some(tear), _) => (cutting_stiffness, tear.cap(cut, now)),
             (None, Some((_, l))) => {
                 let cap = match l.membrane {
                     Membrane::Force(f) => f,
@@ -464,7 +496,7 @@ impl Simulation {
                 let (e, nu) = l.modulus;
                 (1.0 / punch_compliance(e, nu, l.contact_radius), cap)
             }
-            (None, None) => (cutting_stiffness, layer.cutting),
+            (None, None) => (cutting_stiffness, cutting),
         };
         // Engaged with the crack front while the tip is within the element's compression
         // at full load behind it (the point's length when cutting).
@@ -473,23 +505,39 @@ impl Simulation {
             _ => self.contact.point_length,
         };
         let engaged = ((c.tip_depth - (cut - reach)) / reach).clamp(0.0, 1.0);
+        // The tip pushes the front node only while the node is not ahead of its face: a
+        // node carried past it (soft tissue behind a stiff one gives way) is let go within
+        // a refresh distance, and is not driven on ahead of the needle.
+        let ahead = c.s[c.front] - c.now.length();
+        let refresh = self.contact.refresh;
+        let engaged = engaged * ((refresh - ahead) / refresh).clamp(0.0, 1.0);
         front.force = front_step(front.force, -stiffness * ds, cap * engaged);
+        front.dent = match (denting, stiffness > 0.0) {
+            (Some(_), true) => front.force / stiffness,
+            _ => 0.0,
+        };
         // The membrane gives when the tip's force on it reaches its puncture force.
         if let Some((r, l)) = denting {
             if cap.is_finite() && c.cutting && front.force >= cap * (1.0 - 1e-9) {
                 self.state.denting = None;
                 self.state.region = Some(r);
                 self.state.punctured.push(r);
+                front.dent = 0.0;
                 front.tear = Some(Tear {
                     from: front.force,
                     to: l.cutting,
                     at: cut,
                     length: self.contact.point_length,
+                    started: self.stepper.time(),
+                    time: self.contact.tear_time,
                 });
             } else if !c.cutting && front.force == 0.0 {
                 // Pulled back off the membrane.
                 self.state.denting = None;
             }
+        }
+        if std::env::var("NS_FRONT").is_ok() && self.stepper.steps() % 200 == 0 {
+            eprintln!("front step {} region {:?} denting {:?} force {:.3} cap {:.3} dent {:.4} tear {:?} tip_depth {:.4} cut {:.4} tissue_depth {:?}", self.stepper.steps(), self.state.region, self.state.denting, front.force, cap * engaged, front.dent, front.tear.map(|t| (t.from, t.to)), c.tip_depth, cut, self.state.tissue_depth);
         }
         self.state.front = front;
         front.force

@@ -64,6 +64,7 @@ impl Prepared {
                     refresh: c.tip_refresh * self.spacing,
                     radius: c.radius,
                     point_length: c.point_length(),
+                    tear_time: c.tear_time(),
                 },
             ),
             None => (
@@ -77,6 +78,7 @@ impl Prepared {
                     refresh: 0.1 * self.spacing,
                     radius: crate::config::RADIUS_18G,
                     point_length: crate::config::default_point_length(crate::config::RADIUS_18G),
+                    tear_time: 0.01,
                 },
             ),
         };
