@@ -54,7 +54,10 @@ fn materials(model: &str) -> (String, [String; 3]) {
 
 /// The layered block with a needle inserted along +x through the middle of the entry
 /// face to 26 mm at 20 mm/s, held, and pulled out; `membranes` the puncture forces of
-/// `outer`, `middle` and `deep` (as TOML values, `""` for none).
+/// `outer`, `middle` and `deep` (as TOML values, `""` for none). Every membrane carries
+/// the tip's load on a contact of one node spacing's radius (`contact_radius`: a punch
+/// of 4 mm dents the 8 kPa middle layer 5.7 mm at 0.4 N, the others about 2 mm), so that
+/// the dents stay within the 8 mm layers.
 fn layered(model: &str, membranes: [&str; 3]) -> String {
     layered_with(model, membranes, GRIP)
 }
@@ -73,7 +76,7 @@ fn layered_with(model: &str, membranes: [&str; 3], grip: [f64; 3]) -> String {
         };
         regions.push_str(&format!(
             "[[region]]\nname = \"{}\"\ngeometry = {{ kind = \"box\", min = [{}, -0.001, -0.001], max = [{}, 0.017, 0.017] }}\n\
-             material = {{ {} }}\nneedle = {{ {membrane}cutting = {}, friction = {{ coefficient = 0.3, grip = {} }} }}\n\n",
+             material = {{ {} }}\nneedle = {{ {membrane}cutting = {}, contact_radius = {H}, friction = {{ coefficient = 0.3, grip = {} }} }}\n\n",
             names[k],
             spans[k].0,
             spans[k].1,
@@ -86,7 +89,7 @@ fn layered_with(model: &str, membranes: [&str; 3], grip: [f64; 3]) -> String {
         "[tissue]\ndensity = 1000.0\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.032, 0.016, 0.016], spacing = {H} }}\n\n\
          [material]\n{base}\n\n[physics]\ndt = 2e-4\ndamping = 6.0\n\n[[fixed]]\naxis = \"x\"\nabove = 0.0319\n\n\
          {regions}\
-         [needle]\nbase = [-0.103, 0.0081, 0.0079]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.1\nradius = 0.0005\n\
+         [needle]\nbase = [-0.103, 0.0081, 0.0079]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.1\nradius = 0.0005\ncontact_radius = {H}\n\
          friction = {{ coefficient = 0.3, grip = 20.0 }}\n\n\
          [[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.02\nduration = 1.6\n\n\
          [[needle.keyframe]]\naction = \"pause\"\nduration = 0.2\n\n\
@@ -162,8 +165,11 @@ fn the_needle_punctures_each_layer_in_turn_and_extraction_restores_every_array()
             sim.depth_of(h[peak_at].tip, h[peak_at].direction) * 1e3
         );
         assert!((depth - membrane).abs() < H, "{name}: peak at {depth} m");
+        // The membrane's load beyond the cutting force goes (the friction stays): a
+        // drop of at least 80% of it within 0.05 s (the tear takes 30 ms).
+        let (membrane_force, cutting) = [(0.0, 0.0), (0.4, 0.05), (0.4, 0.1)][k];
         assert!(
-            low < 0.6 * peak,
+            peak - low > 0.8 * (membrane_force - cutting),
             "{name}: no drop after the peak {peak} ({low})"
         );
         assert!(
@@ -381,6 +387,13 @@ fn bad_regions_are_errors_naming_the_region_and_key() {
                 "puncture_forse = 0.5",
             ),
             "region[middle].needle",
+        ),
+        (
+            ok.replace(
+                "cutting = 0.05, contact_radius = 0.004",
+                "cutting = 0.05, contact_radius = -0.004",
+            ),
+            "region[middle].needle.contact_radius",
         ),
     ];
     for (text, key) in cases {

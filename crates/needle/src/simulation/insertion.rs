@@ -389,6 +389,18 @@ impl Simulation {
                         _ => TouchingOutcome::Stay,
                     };
                 }
+                // With the contact patch the tip lets go when it no longer presses on it
+                // and has drawn back past it (under a wide contact the dented surface is
+                // flat, and the cone angle says nothing about contact).
+                if let (Some(p), false) = (&self.state.patch, exit) {
+                    let clear = p.force == 0.0
+                        && p.mean.is_some_and(|m| now.length() < m - 1e-9);
+                    outcome = match outcome {
+                        TouchingOutcome::Release if !clear => TouchingOutcome::Stay,
+                        TouchingOutcome::Stay if clear => TouchingOutcome::Release,
+                        o => o,
+                    };
+                }
                 match (outcome, exit) {
                     (TouchingOutcome::Stay, _) => {}
                     (TouchingOutcome::Release, false) => {
@@ -630,6 +642,10 @@ impl Simulation {
                     pos.push(tip);
                     self.state.tip_placed = tip.to_array();
                 }
+                // The Surface node a little ahead of an advancing tip (the entry surface
+                // springing back after the puncture) stays; more than h / 2 ahead, the
+                // shaft lost its grip.
+                ShaftEdit::LeaveSurface if advancing && d >= -0.5 * h => break,
                 ShaftEdit::LeaveSurface => {
                     if advancing {
                         return Err(lost(self, -d));
@@ -796,10 +812,24 @@ impl Simulation {
         let mut nodes = self.mesh_neighbours(index);
         nodes.push(index);
         let mut pos = vec![[0.0f32; 4]; nodes.len()];
+        let mut vel = vec![[0.0f32; 4]; nodes.len()];
         self.backend
-            .read_nodes(NodeField::Position, &nodes, &mut pos)
+            .read_many(
+                &[
+                    (NodeField::Position, nodes.as_slice().into()),
+                    (NodeField::Velocity, nodes.as_slice().into()),
+                ],
+                &mut [&mut pos, &mut vel],
+            )
             .map_err(|e| self.edit(e.into()))?;
-        let x_old = xyz(pos.pop().expect("the Tip node")) + v * self.stepper.dt();
+        // The replacement moves with the tissue around it (the mean of its mesh
+        // neighbours), not with whatever speed the old node had along the shaft.
+        vel.pop();
+        let v = match vel.is_empty() {
+            true => v,
+            false => vel.iter().map(|x| xyz(*x)).sum::<DVec3>() / vel.len() as f64,
+        };
+        let x_old = xyz(pos.pop().expect("the Tip node"));
         nodes.pop();
         let fit = self.fit_around(x_old, &nodes, &pos);
         let placement = match fit {
@@ -817,8 +847,8 @@ impl Simulation {
     }
 
     /// Velocity and friction state of a Shaft node added inside: with the per-length
-    /// model, the tissue's velocity at the tip (the Tip node's) and slipping; with the
-    /// paper's, the needle's and sticking. `known`: the needle nodes' velocities, if read
+    /// model, the tissue's velocity there (the mean of the last node's mesh neighbours)
+    /// and slipping; with the paper's, the needle's and sticking. `known`: the needle nodes' velocities, if read
     /// since the last edit.
     fn new_node_motion(
         &mut self,
@@ -829,13 +859,18 @@ impl Simulation {
         if self.contact.per_length().is_none() {
             return Ok((v_tip, FrictionState::Stick));
         }
-        let k = self.state.nodes.len() - 1;
-        let v = if has_tip {
-            self.node_velocity(k, known)
-                .map_err(|e| self.edit(e.into()))?
-        } else {
-            v_tip
-        };
+        // The tissue's velocity around the last node (the mean of its mesh neighbours).
+        let _ = (has_tip, known);
+        let last = self.state.nodes.last().expect("a needle node").index;
+        let nodes = self.mesh_neighbours(last);
+        if nodes.is_empty() {
+            return Ok((v_tip, FrictionState::Slip));
+        }
+        let mut vel = vec![[0.0f32; 4]; nodes.len()];
+        self.backend
+            .read_nodes(NodeField::Velocity, &nodes, &mut vel)
+            .map_err(|e| self.edit(e.into()))?;
+        let v = vel.iter().map(|x| xyz(*x)).sum::<DVec3>() / vel.len() as f64;
         Ok((v, FrictionState::Slip))
     }
 }

@@ -33,7 +33,7 @@ use needlesim_core::NodeField;
 const MAX_EVALUATIONS: usize = 8;
 /// Relative residual at which a node counts as settled (of the largest load, or of the
 /// force scale when every load is near zero).
-const TOLERANCE: f64 = 0.01;
+const TOLERANCE: f64 = 0.001;
 
 impl Simulation {
     /// Settles the needle nodes from stack position `first` on (all added this step): see
