@@ -111,10 +111,18 @@ fn insert_and_extract_adds_and_removes_nodes_and_restores_every_array() {
 }
 
 /// The force curve of the insert-extract scene, read from the CSV the runner writes:
-/// it rises while Touching, drops at puncture, and is negative during extraction.
+/// it rises while Touching, drops at puncture, and is negative during extraction. The
+/// surface is given a membrane of 0.15 N (three times the cutting force): under the
+/// scene's cone angle rule, the sub-grid contact of an 18 G tip on this soft tissue
+/// punctures at 0.015 N, below the cutting force, so there is no drop to see.
 #[test]
 fn force_curve_rises_drops_at_puncture_and_turns_negative_on_extraction() {
-    let scene = Scene::from_toml_str(INSERT_EXTRACT, Path::new("scenes")).unwrap();
+    let text = INSERT_EXTRACT.replace(
+        "cutting = 0.05 ",
+        "puncture_force = 0.15\ncontact_radius = 0.003\ncutting = 0.05 ",
+    );
+    assert_ne!(text, INSERT_EXTRACT);
+    let scene = Scene::from_toml_str(&text, Path::new("scenes")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut opts = RunOptions::new(dir.path());
     opts.threads = Some(1);
@@ -154,9 +162,15 @@ fn force_curve_rises_drops_at_puncture_and_turns_negative_on_extraction() {
             w[1].time
         );
     }
-    // Drops at puncture: the first Inside step carries less than half of the peak.
+    // Drops at puncture: the membrane's load beyond the cutting force goes within the
+    // tear (30 ms), to less than half of the peak.
     let puncture = rows.iter().position(|r| r.state == "inside").unwrap();
-    assert!(rows[puncture].axial < 0.5 * last.axial);
+    let after = rows[puncture..]
+        .iter()
+        .take_while(|r| r.time < rows[puncture].time + 0.05)
+        .map(|r| r.axial)
+        .fold(f64::INFINITY, f64::min);
+    assert!(after < 0.5 * last.axial, "{after} after a peak of {}", last.axial);
     // Extraction (from t = 2.5 s while Inside): negative on average and at its extreme.
     let out: Vec<f64> = rows
         .iter()
@@ -460,8 +474,11 @@ fn summary(counts: &[(u64, bool)]) -> String {
 /// nodes' positions and velocities with the corners of the far-side test (one
 /// `read_many`), and their forces after the force evaluation. Before issue 20 an
 /// advancing step read back four times (positions, velocities, corners, forces; 4.19 per
-/// step on average over the 200 steps below, 2.18 now). Steps that add, remove or refresh
-/// needle nodes, and the divergence guard every `check_every` steps, read more.
+/// step on average over the 200 steps below). Steps that add, remove or refresh needle
+/// nodes, and the divergence guard every `check_every` steps, read more: since issue 39 a
+/// node edit settles the new nodes in equilibrium (a few force evaluations, each with
+/// the re-placed nodes' candidates and slots read back: 15 to 40 readbacks on that step),
+/// 2.4 to 2.5 per step on average over these 200 steps.
 #[test]
 fn an_inserted_needle_step_reads_back_twice() {
     let scene = Scene::from_toml_str(INSERT_EXTRACT, Path::new("scenes")).unwrap();
@@ -492,6 +509,6 @@ fn an_inserted_needle_step_reads_back_twice() {
         // Advancing: a node edit or Tip refresh every few dozen steps reads more.
         let over = moving.iter().filter(|c| c.0 > 2).count();
         let mean = moving.iter().map(|c| c.0).sum::<u64>() as f64 / moving.len() as f64;
-        assert!(over <= 12 && mean <= 2.3, "{name}: {}", summary(&moving));
+        assert!(over <= 12 && mean <= 2.8, "{name}: {}", summary(&moving));
     }
 }

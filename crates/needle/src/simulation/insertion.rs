@@ -186,7 +186,20 @@ impl Simulation {
     ) -> Result<(), SimulationError> {
         let corners = self.state.surface.triangles()[id];
         let s = (point - DVec3::from(now.base())).dot(DVec3::from(now.direction()));
-        self.add(role, point, s, &corners, v_tip, FrictionState::Stick)
+        // With the per-length model the entry's Surface node is not pinned: it starts with
+        // the velocity of the surface it is added in (the mean of the triangle's corners),
+        // not the needle's.
+        let v = match role == NodeRole::Surface && self.sheathed() {
+            true => {
+                let mut c = [[0.0f32; 4]; 3];
+                self.backend
+                    .read_nodes(NodeField::Velocity, &corners, &mut c)
+                    .map_err(|e| self.edit(e.into()))?;
+                c.iter().map(|x| xyz(*x)).sum::<DVec3>() / 3.0
+            }
+            false => v_tip,
+        };
+        self.add(role, point, s, &corners, v, FrictionState::Stick)
             .map_err(|e| self.edit(e))?;
         let node = self.state.nodes.last().expect("just added").index;
         let editor = &self.editor;

@@ -56,6 +56,18 @@ impl Simulation {
             .map(|k| DVec3::from(self.state.nodes[k].normal) - t * self.carried_load(k, now, pos))
             .collect();
         let scale = targets.iter().fold(0.0f64, |a, l| a.max(l.length()));
+        // The nodes' positions and velocities, which re-placing them keeps.
+        let (mut p, mut v) = (vec![[0.0f32; 4]; m - first], vec![[0.0f32; 4]; m - first]);
+        self.backend
+            .read_many(
+                &[
+                    (NodeField::Position, (n0 + first..n0 + m).into()),
+                    (NodeField::Velocity, (n0 + first..n0 + m).into()),
+                ],
+                &mut [&mut p, &mut v],
+            )
+            .map_err(|e| self.edit(e.into()))?;
+        let state = (p, v);
         let mut rest: Vec<DVec3> = (first..m)
             .map(|k| DVec3::from(self.rest_of(self.state.nodes[k].index)))
             .collect();
@@ -85,7 +97,7 @@ impl Simulation {
         // steps taken, one force evaluation each).
         let eps = 1e-3 * self.spacing;
         let probe: Vec<DVec3> = rest.iter().map(|x| *x + t * eps).collect();
-        self.replace_rest(first, &probe)?;
+        self.replace_rest(first, &probe, &state)?;
         let r1 = residual(self)?;
         let n = 3 * (m - first);
         let mut jac = DMatrix::<f64>::zeros(n, n);
@@ -127,7 +139,7 @@ impl Simulation {
                 .enumerate()
                 .map(|(k, x)| *x + DVec3::new(step[3 * k], step[3 * k + 1], step[3 * k + 2]))
                 .collect();
-            self.replace_rest(first, &next)?;
+            self.replace_rest(first, &next, &state)?;
             let r2 = residual(self)?;
             if std::env::var("NS_SETTLE").is_ok() {
                 eprintln!("  iter res {:.3e} -> {:.3e}", size(&r), size(&r2));
@@ -146,7 +158,7 @@ impl Simulation {
             }
         }
         if size(&r) > best.0 {
-            self.replace_rest(first, &best.1)?;
+            self.replace_rest(first, &best.1, &state)?;
         }
         if std::env::var("NS_SETTLE").is_ok() {
             eprintln!("settle step {} first {first} m {m} tol {tol:.2e} res {:.2e}", self.stepper.steps(), size(&r));
@@ -181,21 +193,18 @@ impl Simulation {
     }
 
     /// Re-places the needle nodes from stack position `first` on with the rest positions
-    /// `rest` (one per node, in order): removes them and adds them again at their current
-    /// positions and velocities, among the same candidates.
-    fn replace_rest(&mut self, first: usize, rest: &[DVec3]) -> Result<(), SimulationError> {
+    /// `rest` (one per node, in order): removes them and adds them again at their
+    /// positions and velocities `state` (as read before the first re-placement), among
+    /// the same candidates.
+    #[allow(clippy::type_complexity)]
+    fn replace_rest(
+        &mut self,
+        first: usize,
+        rest: &[DVec3],
+        state: &(Vec<[f32; 4]>, Vec<[f32; 4]>),
+    ) -> Result<(), SimulationError> {
         let m = self.state.nodes.len();
-        let n0 = self.editor.n_mesh();
-        let (mut p, mut v) = (vec![[0.0f32; 4]; m - first], vec![[0.0f32; 4]; m - first]);
-        self.backend
-            .read_many(
-                &[
-                    (NodeField::Position, (n0 + first..n0 + m).into()),
-                    (NodeField::Velocity, (n0 + first..n0 + m).into()),
-                ],
-                &mut [&mut p, &mut v],
-            )
-            .map_err(|e| self.edit(e.into()))?;
+        let (p, v) = state;
         for _ in first..m {
             self.editor
                 .remove_last(self.backend.as_mut())
