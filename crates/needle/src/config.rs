@@ -266,9 +266,9 @@ impl NeedleConfig {
         self.contact_radius.unwrap_or(self.radius)
     }
 
-    /// Tear time (s): `tear_time`, or 10 ms.
+    /// Tear time (s): `tear_time`, or 15 ms.
     pub fn tear_time(&self) -> f64 {
-        self.tear_time.unwrap_or(0.03)
+        self.tear_time.unwrap_or(0.015)
     }
 
     /// Point length (m): `point_length`, or that of an 18-degree bevel.

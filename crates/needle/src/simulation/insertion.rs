@@ -431,8 +431,8 @@ impl Simulation {
                         self.state.nodes[0].friction = FrictionState::Slip;
                         self.state.cut_depth = self.depth_of(now.tip(), now.direction());
                         // The entry membrane tears: the tip carries on with the cutting
-                        // force at once (it was pressing harder than that), and the patch
-                        // lets go of the rest over the tear ([`sheath::Tear`]).
+                        // force at once (when it was pressing harder than that), and the
+                        // patch lets go of the rest over the tear ([`sheath::Tear`]).
                         let cut = self.state.cut_depth;
                         let cutting = self.contact.layers[pinned_region].cutting;
                         let (length, time) = (self.contact.point_length, self.contact.tear_time);
@@ -444,6 +444,18 @@ impl Simulation {
                             p.tear = Some(Tear {
                                 from: p.force,
                                 to: 0.0,
+                                at: cut,
+                                length,
+                                started,
+                                time,
+                            });
+                        }
+                        // A membrane weaker than the cutting force: the cutting force comes
+                        // up to its own over the same tear.
+                        if front.force < cutting {
+                            front.tear = Some(Tear {
+                                from: front.force,
+                                to: cutting,
                                 at: cut,
                                 length,
                                 started,
@@ -553,13 +565,15 @@ impl Simulation {
             // With the per-length model the Tip node marks the crack front: it is taken
             // off (and not put back) once the needle is pulled back behind it, and put on
             // again only when the needle advances.
-            // A Tip node the tissue has carried more than a refresh distance ahead of the
-            // advancing tip (springing back after a puncture) holds no crack front: it is
-            // taken off, and put on at the tip again from the next step.
+            // A Tip node the tissue has carried more than two refresh distances ahead of
+            // the advancing tip (springing back after a puncture; the tip's push is off
+            // from there, [`Simulation::front_step`]) holds no crack front: it is taken off,
+            // and put on at the tip again from the next step.
             let ahead = sheathed
                 && has_tip
                 && advancing
-                && (pos[nodes.len() - 1] - base).dot(t) > now.length() + self.contact.refresh;
+                && (pos[nodes.len() - 1] - base).dot(t)
+                    > now.length() + 2.0 * self.contact.refresh;
             let behind = sheathed
                 && has_tip
                 && ((!advancing && nodes[nodes.len() - 1].share == 0.0) || ahead);

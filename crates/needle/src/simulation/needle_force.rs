@@ -235,7 +235,7 @@ impl Simulation {
                         _ => {
                             self.state.region = Some(r);
                             // The cutting force passes to the new region's as the point
-                            // crosses the interface.
+                            // crosses the interface (or within the tear time).
                             if sheathed && cutting {
                                 let f = &mut self.state.front;
                                 f.tear = Some(Tear {
@@ -243,8 +243,8 @@ impl Simulation {
                                     to: self.contact.layers[r as usize].cutting,
                                     at: self.state.cut_depth,
                                     length: self.contact.point_length,
-                                    started: 0.0,
-                                    time: f64::INFINITY,
+                                    started: self.stepper.time(),
+                                    time: self.contact.tear_time,
                                 });
                             }
                         }
@@ -465,12 +465,11 @@ impl Simulation {
 
     /// One step of the tip's element at the crack front ([`crate::sheath::FrontElement`]),
     /// the front node having moved `ds` along the needle; returns its force on the node
-    /// (along the needle). It cuts with at most the region's cutting force, building up
-    /// over the point's length of advance; dents a membrane up to its puncture force (with
-    /// the stiffness of a punch of the membrane's contact radius), then the membrane gives
-    /// and tears; and it lets go of the crack front over the same length when the tip is
-    /// pulled back from it (the cap falls linearly to zero over that retraction), pushing
-    /// nothing in a track already cut.
+    /// (along the needle). At the crack front it cuts with the region's cutting force (off
+    /// over one needle radius of retraction, on again over the last radius of a return
+    /// along the track, nothing in a track already cut); it dents an inner membrane as an
+    /// elastic element (the stiffness of a punch of the membrane's contact radius) up to
+    /// the membrane's puncture force, then the membrane gives and tears.
     fn front_step(&mut self, c: &Step, ds: f64, layer: super::Layer) -> f64 {
         let cut = self.state.cut_depth;
         let mut front = self.state.front;
@@ -488,10 +487,17 @@ impl Simulation {
             .state
             .region
             .map_or(layer.cutting, |r| self.contact.layers[r as usize].cutting);
-        let cutting_stiffness = cutting / self.contact.point_length;
-        let (stiffness, cap) = match (front.tear, denting) {
-            (Some(tear), _) => (cutting_stiffness, tear.cap(cut, now)),
+        // The tip pushes the front node only while the node is not ahead of its face
+        // (within a refresh distance, which a node may wobble by): a node carried further
+        // past it (soft tissue behind a stiff one gives way) is let go over the next
+        // refresh distance, and is not driven on ahead of the needle.
+        let ahead = c.s[c.front] - c.now.length();
+        let refresh = self.contact.refresh;
+        let free = ((2.0 * refresh - ahead) / refresh).clamp(0.0, 1.0);
+        let (cap, stiffness) = match (front.tear, denting) {
             (None, Some((_, l))) => {
+                // Denting an inner membrane: an elastic element, a punch of the membrane's
+                // contact radius.
                 let cap = match l.membrane {
                     Membrane::Force(f) => f,
                     _ => f64::INFINITY,
@@ -501,24 +507,30 @@ impl Simulation {
                 // The front node's own point-load compliance inside the tissue carries
                 // part of the punch's: the sub-grid element adds only the rest.
                 let point = INTERIOR_POINT_COMPLIANCE * (1.0 - nu * nu) / (e * self.spacing);
-                (1.0 / (punch - point).max(0.1 * punch), cap)
+                let stiffness = 1.0 / (punch - point).max(0.1 * punch);
+                // Engaged while the tip is within the element's compression at full load
+                // behind the membrane.
+                let reach = match cap.is_finite() {
+                    true => cap / stiffness,
+                    false => self.contact.radius,
+                };
+                let engaged = ((c.tip_depth - (cut - reach)) / reach).clamp(0.0, 1.0);
+                front.force = front_step(front.force, -stiffness * ds, cap * engaged * free);
+                (cap, stiffness)
             }
-            (None, None) => (cutting_stiffness, cutting),
+            (tear, _) => {
+                // Cutting (and tearing through a membrane that gave): the fracture of the
+                // tissue ahead takes the cutting force whatever the tissue around does, while
+                // the tip is at the crack front; it comes off over one needle radius when the
+                // tip is drawn back from the front, and comes on again over the last radius
+                // when the tip returns to it along its track.
+                let cap = tear.map_or(cutting, |t| t.cap(cut, now));
+                let a = self.contact.radius;
+                let engaged = ((c.tip_depth - (cut - a)) / a).clamp(0.0, 1.0);
+                front.force = cap * engaged * free;
+                (cap, 0.0)
+            }
         };
-        // Engaged with the crack front while the tip is within the element's compression
-        // at full load behind it (the point's length when cutting).
-        let reach = match (cap.is_finite() && stiffness > 0.0, cap > 0.0) {
-            (true, true) => cap / stiffness,
-            _ => self.contact.point_length,
-        };
-        let engaged = ((c.tip_depth - (cut - reach)) / reach).clamp(0.0, 1.0);
-        // The tip pushes the front node only while the node is not ahead of its face: a
-        // node carried past it (soft tissue behind a stiff one gives way) is let go within
-        // a refresh distance, and is not driven on ahead of the needle.
-        let ahead = c.s[c.front] - c.now.length();
-        let refresh = self.contact.refresh;
-        let engaged = engaged * ((refresh - ahead) / refresh).clamp(0.0, 1.0);
-        front.force = front_step(front.force, -stiffness * ds, cap * engaged);
         front.dent = match (denting, stiffness > 0.0) {
             (Some(_), true) => front.force / stiffness,
             _ => 0.0,
@@ -543,9 +555,7 @@ impl Simulation {
                 self.state.denting = None;
             }
         }
-        if std::env::var("NS_FRONT").is_ok() && self.stepper.steps() % 200 == 0 {
-            eprintln!("front step {} region {:?} denting {:?} force {:.3} cap {:.3} dent {:.4} tear {:?} tip_depth {:.4} cut {:.4} tissue_depth {:?}", self.stepper.steps(), self.state.region, self.state.denting, front.force, cap * engaged, front.dent, front.tear.map(|t| (t.from, t.to)), c.tip_depth, cut, self.state.tissue_depth);
-        }
+
         self.state.front = front;
         front.force
     }
