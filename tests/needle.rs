@@ -170,7 +170,11 @@ fn force_curve_rises_drops_at_puncture_and_turns_negative_on_extraction() {
         .take_while(|r| r.time < rows[puncture].time + 0.05)
         .map(|r| r.axial)
         .fold(f64::INFINITY, f64::min);
-    assert!(after < 0.5 * last.axial, "{after} after a peak of {}", last.axial);
+    assert!(
+        after < 0.5 * last.axial,
+        "{after} after a peak of {}",
+        last.axial
+    );
     // Extraction (from t = 2.5 s while Inside): negative on average and at its extreme.
     let out: Vec<f64> = rows
         .iter()

@@ -31,19 +31,15 @@
 //! elasticity at strains of order one, an estimate of the order of the grip; measured
 //! friction is matched by giving `grip` (or the coefficient) explicitly.
 //!
-//! The stick-slip law is solved implicitly per node and per step, so it cannot chatter:
-//! - a sticking node moves with the needle; the needle holds it with the force it needs
-//!   (`-a`); it slips when that exceeds the static limit in its direction;
-//! - a slipping node is free along the shaft; the force `phi_stick` that would bring it to
-//!   the needle's axial speed by the end of the step is computed from its velocity and
-//!   force. If it is within the kinetic limit the node sticks again with exactly that
-//!   force; otherwise it gets the kinetic force in the direction of `phi_stick`, which
-//!   cannot overshoot (the relative velocity keeps its sign: no sign flip near zero speed).
-//!
-//! The limits may differ by direction: the Tip node is also pushed forward by the cutting
-//! force (a forward limit raised by `F_c` while the tip cuts new tissue) but is not pulled
-//! back by the tip face when the needle is withdrawn.
-//!
+//! The node's axial motion against the needle goes through the sheath of tissue around
+//! the shaft ([`crate::sheath`]): an elastic shear element with a Kelvin-Voigt dashpot,
+//! in series with a Coulomb slider whose cap is `mu N` (`mu_s N` until the node first
+//! slips when a static coefficient above the kinetic one is given, then `mu_k N`, plus the
+//! viscous term). Its state is the force itself, so it cannot chatter; it reverses over
+//! the pre-sliding length; the friction opposes the relative sliding velocity including a
+//! spin of the needle about its axis. The cutting force `F_c` acts on the node at the
+//! crack front while the tip advances into tissue it has not cut (never pulling it back).
+
 //! # `model = "paper"`: equation 2 as written
 //!
 //! Stick: the node moves rigidly with the needle, and slips when `|a|` exceeds the static
@@ -310,89 +306,6 @@ fn relative_axial(v_node: [f64; 3], v_needle: [f64; 3], t: DVec3) -> f64 {
     (DVec3::from_array(v_needle) - DVec3::from_array(v_node)).dot(t)
 }
 
-/// Friction limits of one node in N, by direction of the force the needle exerts on it
-/// (`forward`: towards the tip).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Limits {
-    /// Static limit, forward.
-    pub static_forward: f64,
-    /// Static limit, backward.
-    pub static_backward: f64,
-    /// Kinetic limit, forward.
-    pub kinetic_forward: f64,
-    /// Kinetic limit, backward.
-    pub kinetic_backward: f64,
-    /// Viscous coefficient of the node, N s/m.
-    pub viscous: f64,
-}
-
-impl Limits {
-    /// Symmetric limits.
-    pub fn symmetric(stat: f64, kinetic: f64, viscous: f64) -> Limits {
-        Limits {
-            static_forward: stat,
-            static_backward: stat,
-            kinetic_forward: kinetic,
-            kinetic_backward: kinetic,
-            viscous,
-        }
-    }
-}
-
-/// One node's axial motion over one step, as the integrator will take it:
-/// `v' = d (v + dt (a + phi) / m + dt g)`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AxialStep {
-    /// Axial elastic force on the node, N.
-    pub elastic: f64,
-    /// Node's axial velocity now, m/s.
-    pub velocity: f64,
-    /// Needle's axial velocity at the node, m/s.
-    pub needle_velocity: f64,
-    /// Node mass, kg.
-    pub mass: f64,
-    /// Time step, s.
-    pub dt: f64,
-    /// The integrator's damping factor `1 / (1 + dt c)`.
-    pub damping_factor: f64,
-    /// Axial gravity, m/s^2.
-    pub gravity: f64,
-}
-
-/// The per-length model's implicit stick-slip step for one node: its state after the
-/// step and the axial force `phi` (N, along `t`) the needle exerts on it this step.
-pub fn per_length_step(state: FrictionState, s: &AxialStep, lim: &Limits) -> (FrictionState, f64) {
-    match state {
-        FrictionState::Stick => {
-            // Held on the needle: the force it takes to keep it there.
-            let hold = -(s.elastic + s.mass * s.gravity);
-            if (-lim.static_backward..=lim.static_forward).contains(&hold) {
-                (FrictionState::Stick, hold)
-            } else if hold > 0.0 {
-                (FrictionState::Slip, lim.kinetic_forward)
-            } else {
-                (FrictionState::Slip, -lim.kinetic_backward)
-            }
-        }
-        FrictionState::Slip => {
-            let beta = s.damping_factor * s.dt / s.mass;
-            let free = s.damping_factor * (s.velocity + s.dt * (s.elastic / s.mass + s.gravity));
-            let stick = (s.needle_velocity - free) / beta;
-            if (-lim.kinetic_backward..=lim.kinetic_forward).contains(&stick) {
-                return (FrictionState::Stick, stick);
-            }
-            let (sigma, k) = if stick > 0.0 {
-                (1.0, lim.kinetic_forward)
-            } else {
-                (-1.0, lim.kinetic_backward)
-            };
-            // phi = sigma k - c w', w' = free + beta phi - u (implicit viscous term).
-            let w = (free - s.needle_velocity + beta * sigma * k) / (1.0 + beta * lim.viscous);
-            (FrictionState::Slip, sigma * k - lim.viscous * w)
-        }
-    }
-}
-
 /// The paper model's state after this step: a sticking node slips when its axial elastic
 /// force exceeds the threshold; a slipping node sticks when the relative axial speed is
 /// below the stick speed and the axial force is within the threshold.
@@ -503,90 +416,6 @@ mod tests {
         }
         let fd = paper_dynamic_friction([0.0, 0.0, 1.0], [0.0; 3], [0.06, 0.08, 0.0], t, &P);
         assert!(DVec3::from_array(fd).dot(DVec3::from_array(t)) > 0.0);
-    }
-
-    fn step(elastic: f64, velocity: f64, needle: f64) -> AxialStep {
-        AxialStep {
-            elastic,
-            velocity,
-            needle_velocity: needle,
-            mass: 0.01,
-            dt: 1e-3,
-            damping_factor: 1.0 / (1.0 + 1e-3 * 4.0),
-            gravity: 0.0,
-        }
-    }
-
-    /// The velocity the integrator gives a node after a step with friction `phi`.
-    fn after(s: &AxialStep, phi: f64) -> f64 {
-        s.damping_factor * (s.velocity + s.dt * ((s.elastic + phi) / s.mass + s.gravity))
-    }
-
-    #[test]
-    fn sticking_node_is_held_within_the_static_limit_and_slips_beyond() {
-        let lim = Limits::symmetric(0.2, 0.15, 0.0);
-        let s = step(-0.1, 0.02, 0.02);
-        assert_eq!(
-            per_length_step(FrictionState::Stick, &s, &lim),
-            (FrictionState::Stick, 0.1)
-        );
-        let s = step(-0.3, 0.02, 0.02);
-        assert_eq!(
-            per_length_step(FrictionState::Stick, &s, &lim),
-            (FrictionState::Slip, 0.15)
-        );
-        let s = step(0.3, 0.02, 0.02);
-        assert_eq!(
-            per_length_step(FrictionState::Stick, &s, &lim),
-            (FrictionState::Slip, -0.15)
-        );
-    }
-
-    /// A slipping node never overshoots the needle's speed: the relative velocity keeps
-    /// its sign or becomes exactly zero (re-stick), for any force, speed and limit, and the
-    /// friction force never has the sign of the relative velocity (it dissipates).
-    #[test]
-    fn slipping_node_never_flips_the_sign_of_its_relative_velocity() {
-        let mut seed = 11u64;
-        let mut r = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        for _ in 0..2000 {
-            let s = step(r(), 0.1 * r(), 0.1 * r());
-            let lim = Limits {
-                static_forward: 0.0,
-                static_backward: 0.0,
-                kinetic_forward: 0.3 * (r() + 0.5),
-                kinetic_backward: 0.3 * (r() + 0.5),
-                viscous: 2.0 * (r() + 0.5),
-            };
-            let (state, phi) = per_length_step(FrictionState::Slip, &s, &lim);
-            let w_free = after(&s, 0.0) - s.needle_velocity;
-            let w = after(&s, phi) - s.needle_velocity;
-            match state {
-                FrictionState::Stick => {
-                    assert!(w.abs() < 1e-12, "re-stuck node moves at {w} relative");
-                    assert!(phi <= lim.kinetic_forward + 1e-12);
-                    assert!(phi >= -lim.kinetic_backward - 1e-12);
-                }
-                FrictionState::Slip => {
-                    assert!(
-                        w * w_free > 0.0,
-                        "relative velocity flipped: {w_free} -> {w}"
-                    );
-                    assert!(phi * w <= 0.0, "friction {phi} feeds relative motion {w}");
-                    let k = if phi > 0.0 {
-                        lim.kinetic_forward
-                    } else {
-                        lim.kinetic_backward
-                    };
-                    assert!((phi.abs() - (k + lim.viscous * w.abs())).abs() < 1e-9);
-                }
-            }
-        }
     }
 
     #[test]

@@ -147,10 +147,7 @@ pub struct SheathStep {
 /// carries nothing: no rate effect on steady sliding). Returns the elastic state after
 /// the step, the force on the node (axial, circumferential) and whether it slips.
 pub fn sheath_step(s: &SheathStep) -> ([f64; 2], [f64; 2], bool) {
-    let trial = [
-        s.elastic[0] + s.increment[0],
-        s.elastic[1] + s.increment[1],
-    ];
+    let trial = [s.elastic[0] + s.increment[0], s.elastic[1] + s.increment[1]];
     let w = (s.free + s.beta * (s.other + trial[0])) / (1.0 + s.beta * s.viscous);
     let out = [trial[0] - s.viscous * w, trial[1]];
     let (capped, slips) = friction_step(out, [0.0, 0.0], s.cap);
@@ -375,7 +372,10 @@ mod tests {
         for _ in 0..100 {
             f = friction_step(f, [0.3, 0.4], cap).0;
         }
-        assert!((f[0] - 0.6).abs() < 1e-12 && (f[1] - 0.8).abs() < 1e-12, "{f:?}");
+        assert!(
+            (f[0] - 0.6).abs() < 1e-12 && (f[1] - 0.8).abs() < 1e-12,
+            "{f:?}"
+        );
     }
 
     #[test]
@@ -400,7 +400,10 @@ mod tests {
         }
         // Capped, the dashpot adds nothing beyond the cap.
         let (e, f, slips) = step(1e9, 0.5);
-        assert!(slips && (f[0] + 0.5).abs() < 1e-12 && f[1] == 0.0 && e == f, "{f:?}");
+        assert!(
+            slips && (f[0] + 0.5).abs() < 1e-12 && f[1] == 0.0 && e == f,
+            "{f:?}"
+        );
     }
 
     #[test]

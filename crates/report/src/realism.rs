@@ -161,9 +161,7 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
         .map(|r| r.state == PunctureState::Inside)
         .collect();
     let punct: Vec<f64> = (1..n)
-        .filter(|&i| {
-            inside[i] && (!inside[i - 1] || rows[i].region != rows[i - 1].region)
-        })
+        .filter(|&i| inside[i] && (!inside[i - 1] || rows[i].region != rows[i - 1].region))
         .map(|i| t[i])
         .collect();
     let near: Vec<bool> = t
@@ -177,13 +175,23 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
         .map(|x| x.max(0.1 * fmax))
         .collect();
     let df: Vec<f64> = (0..n)
-        .map(|i| if i + 1 < n { (f[i + 1] - f[i]).abs() } else { 0.0 })
+        .map(|i| {
+            if i + 1 < n {
+                (f[i + 1] - f[i]).abs()
+            } else {
+                0.0
+            }
+        })
         .collect();
     let ok: Vec<bool> = (0..n).map(|i| inside[i] && !near[i]).collect();
     let jumps = (0..n).filter(|&i| ok[i] && df[i] > 0.05 * m[i]).count();
     let w20 = (0.02 / dt).round() as usize;
     let smooth = movmean(&f, w20);
-    let sq: Vec<f64> = f.iter().zip(&smooth).map(|(a, b)| (a - b).powi(2)).collect();
+    let sq: Vec<f64> = f
+        .iter()
+        .zip(&smooth)
+        .map(|(a, b)| (a - b).powi(2))
+        .collect();
     let hf: Vec<f64> = movmean(&sq, w20)
         .into_iter()
         .zip(&m)
@@ -204,7 +212,9 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
     let dd: Vec<f64> = (0..n)
         .map(|i| if i + 1 < n { d[i + 1] - d[i] } else { 0.0 })
         .collect();
-    let held: Vec<usize> = (0..n).filter(|&i| inside[i] && dd[i].abs() < 1e-9).collect();
+    let held: Vec<usize> = (0..n)
+        .filter(|&i| inside[i] && dd[i].abs() < 1e-9)
+        .collect();
     let moving: Vec<usize> = (0..n)
         .filter(|&i| inside[i] && dd[i].abs() >= 1e-9)
         .collect();
@@ -320,6 +330,17 @@ fn read_scene(name: &str) -> Result<toml::Table, ReportError> {
 
 /// Sets the dotted key `key` of `table` (every part but the last must exist; the part
 /// after an array's name is an index into it).
+/// Moves the liver scene's fixed set (`above` along x) onto the last lattice plane at
+/// spacing `h`: a spacing that does not divide the block leaves that plane short of the
+/// face, and the scene's `above = 0.0799` would then hold no node.
+fn hold_far_face(table: &mut toml::Table, h: f64) {
+    let geometry = &table["tissue"]["geometry"];
+    let coord = |key: &str| geometry[key].as_array().expect("box corner")[0].as_float();
+    let (lo, hi) = (coord("min").expect("min"), coord("max").expect("max"));
+    let last = lo + ((hi - lo) / h + 1e-9).floor() * h;
+    set(table, "fixed.0.above", (last - 0.1 * h).into());
+}
+
 fn set(table: &mut toml::Table, key: &str, value: toml::Value) {
     fn walk(t: &mut toml::Table, parts: &[&str], value: toml::Value, key: &str) {
         if let [last] = parts {
@@ -329,7 +350,9 @@ fn set(table: &mut toml::Table, key: &str, value: toml::Value) {
         match t.get_mut(parts[0]) {
             Some(toml::Value::Table(inner)) => walk(inner, &parts[1..], value, key),
             Some(toml::Value::Array(a)) => {
-                let i: usize = parts[1].parse().unwrap_or_else(|_| panic!("index in {key}"));
+                let i: usize = parts[1]
+                    .parse()
+                    .unwrap_or_else(|_| panic!("index in {key}"));
                 let inner = a[i]
                     .as_table_mut()
                     .unwrap_or_else(|| panic!("{key}: not a table"));
@@ -364,7 +387,9 @@ fn run(table: &toml::Table, seconds: Option<f64>) -> Result<Simulation, ReportEr
 
 /// The first move keyframe's speed (m/s) and duration (s) of a scene.
 fn first_move(table: &toml::Table) -> (f64, f64) {
-    let k = table["needle"]["keyframe"][0].as_table().expect("a keyframe");
+    let k = table["needle"]["keyframe"][0]
+        .as_table()
+        .expect("a keyframe");
     let f = |key: &str| k[key].as_float().expect("a number");
     (f("speed"), f("duration"))
 }
@@ -438,11 +463,12 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
             a.held.map_or("-".into(), |x| format!("{x:.4}%")),
             a.moving.map_or("-".into(), |x| format!("{x:.4}%")),
         ));
-        rep.scenes.push((name.to_string(), sim.editor().n_mesh(), a));
+        rep.scenes
+            .push((name.to_string(), sim.editor().n_mesh(), a));
     }
     let (speed, duration) = first_move(&liver);
     let insertion = duration + 1.0; // the first contact comes after about a second
-    // Friction off: the cutting force alone.
+                                    // Friction off: the cutting force alone.
     let cutting = liver["needle"]["cutting"].as_float().expect("cutting");
     let mut off = liver.clone();
     set(&mut off, "needle.friction.coefficient", 0.0.into());
@@ -458,6 +484,7 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
     for factor in [0.7, 1.0, 1.4] {
         let mut t = liver.clone();
         set(&mut t, "tissue.geometry.spacing", (base_h * factor).into());
+        hold_far_face(&mut t, base_h * factor);
         let sim = run(&t, Some(duration))?;
         let ds = dent_slope(&sim, format!("{factor} x spacing"), duration);
         progress(&format!(
@@ -478,7 +505,12 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         .unwrap_or(18) as usize;
     let cal = needlesim_core::calibration::calibration(k)
         .map_err(|e| ReportError::Scene(e.to_string()))?;
-    for model in ["debunne_corotated", "point_based", "local_shape_matching", "mass_spring"] {
+    for model in [
+        "debunne_corotated",
+        "point_based",
+        "local_shape_matching",
+        "mass_spring",
+    ] {
         let mut t = liver.clone();
         let mut mat = toml::Table::new();
         match model {
@@ -499,7 +531,10 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
             }
             _ => {
                 mat.insert("model".into(), "mass_spring".into());
-                mat.insert("stiffness".into(), (cal.mass_spring * young * base_h).into());
+                mat.insert(
+                    "stiffness".into(),
+                    (cal.mass_spring * young * base_h).into(),
+                );
             }
         }
         t.insert("material".into(), mat.into());
@@ -513,8 +548,12 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         ));
         rep.models.push(ds);
     }
-    let contact = liver["needle"]["contact_radius"].as_float().expect("contact_radius");
-    let fp = liver["needle"]["puncture_force"].as_float().expect("puncture_force");
+    let contact = liver["needle"]["contact_radius"]
+        .as_float()
+        .expect("contact_radius");
+    let fp = liver["needle"]["puncture_force"]
+        .as_float()
+        .expect("puncture_force");
     rep.dent_half_space = fp * needlesim_needle::sheath::punch_compliance(young, nu, contact);
     // Speed: the tip reaches 25 mm at every speed.
     let travel = speed * duration;
@@ -529,7 +568,10 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         set(&mut t, "needle.keyframe.0.duration", (travel / v).into());
         let sim = run(&t, Some(travel / v))?;
         let f = force_at(&sim, 0.025);
-        progress(&format!("realism      liver at {:.0} mm/s: {f:.3} N at 25 mm", 1e3 * v));
+        progress(&format!(
+            "realism      liver at {:.0} mm/s: {f:.3} N at 25 mm",
+            1e3 * v
+        ));
         rep.speeds.push((v, f));
     }
     // Spin at one revolution per second while inserting.
@@ -662,7 +704,11 @@ pub fn run_and_write(
 
 /// Spread of `x` as (max - min) / mean, %.
 fn spread(x: impl Iterator<Item = f64> + Clone) -> f64 {
-    let (lo, hi) = x.clone().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let (lo, hi) = x
+        .clone()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
     let n = x.clone().count() as f64;
     let mean = x.sum::<f64>() / n;
     100.0 * (hi - lo) / mean
@@ -709,7 +755,11 @@ pub fn markdown(md: &mut String, r: &Realism) {
     }
     for (title, v) in [("Spacing", &r.spacing), ("Tissue model", &r.models)] {
         writeln!(md, "\n{title} study, liver scene (insertion only):\n").unwrap();
-        writeln!(md, "| case | nodes | spacing mm | dent mm | force at puncture N | slope N/m |").unwrap();
+        writeln!(
+            md,
+            "| case | nodes | spacing mm | dent mm | force at puncture N | slope N/m |"
+        )
+        .unwrap();
         writeln!(md, "|---|---:|---:|---:|---:|---:|").unwrap();
         for d in v.iter() {
             writeln!(
@@ -741,7 +791,11 @@ pub fn markdown(md: &mut String, r: &Realism) {
     )
     .unwrap();
     if !r.speeds.is_empty() {
-        writeln!(md, "\nSpeed (elastic tissue: the force should not depend on it):\n").unwrap();
+        writeln!(
+            md,
+            "\nSpeed (elastic tissue: the force should not depend on it):\n"
+        )
+        .unwrap();
         writeln!(md, "| speed mm/s | force at 25 mm N |").unwrap();
         writeln!(md, "|---:|---:|").unwrap();
         for (v, f) in &r.speeds {
@@ -780,12 +834,18 @@ mod tests {
         // numpy: np.convolve([1, 2, 3, 4, 5], np.ones(3) / 3, "same") = [1, 2, 3, 4, 3]
         let m = movmean(&[1.0, 2.0, 3.0, 4.0, 5.0], 3);
         let want = [1.0, 2.0, 3.0, 4.0, 3.0];
-        assert!(m.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-12), "{m:?}");
+        assert!(
+            m.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-12),
+            "{m:?}"
+        );
         // Even windows lean as numpy's do: [1, 3, 5, 7, 9] with ones(4) / 4 gives
         // [1, 2.25, 4, 6, 5.25].
         let m = movmean(&[1.0, 3.0, 5.0, 7.0, 9.0], 4);
         let want = [1.0, 2.25, 4.0, 6.0, 5.25];
-        assert!(m.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-12), "{m:?}");
+        assert!(
+            m.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-12),
+            "{m:?}"
+        );
     }
 
     #[test]

@@ -346,8 +346,8 @@ impl Simulation {
         let tip = DVec3::from(now.tip());
         let v_tip = self.needle_velocity(prev, now, now.length());
         self.state.swept_from = prev.tip();
-        self.state.advance = self.depth_of(now.tip(), now.direction())
-            - self.depth_of(prev.tip(), prev.direction());
+        self.state.advance =
+            self.depth_of(now.tip(), now.direction()) - self.depth_of(prev.tip(), prev.direction());
         if self.state.phase != Phase::Outside {
             self.check_motion(prev, now, None)?;
         }
@@ -406,8 +406,7 @@ impl Simulation {
                 // and has drawn back past it (under a wide contact the dented surface is
                 // flat, and the cone angle says nothing about contact).
                 if let (Some(p), false) = (&self.state.patch, exit) {
-                    let clear = p.force == 0.0
-                        && p.mean.is_some_and(|m| now.length() < m - 1e-9);
+                    let clear = p.force == 0.0 && p.mean.is_some_and(|m| now.length() < m - 1e-9);
                     outcome = match outcome {
                         TouchingOutcome::Release if !clear => TouchingOutcome::Stay,
                         TouchingOutcome::Stay if clear => TouchingOutcome::Release,
@@ -572,8 +571,7 @@ impl Simulation {
             let ahead = sheathed
                 && has_tip
                 && advancing
-                && (pos[nodes.len() - 1] - base).dot(t)
-                    > now.length() + 2.0 * self.contact.refresh;
+                && (pos[nodes.len() - 1] - base).dot(t) > now.length() + 2.0 * self.contact.refresh;
             let behind = sheathed
                 && has_tip
                 && ((!advancing && nodes[nodes.len() - 1].share == 0.0) || ahead);
@@ -702,7 +700,11 @@ impl Simulation {
         // (Nor while the Tip node dents an inner membrane: it is the membrane the tip
         // presses on, not tissue the tip cuts.)
         let denting = sheathed && self.state.denting.is_some();
-        if has_tip && !edited && moved > self.contact.refresh && (advancing || !sheathed) && !denting
+        if has_tip
+            && !edited
+            && moved > self.contact.refresh
+            && (advancing || !sheathed)
+            && !denting
         {
             // The refreshed Tip node keeps the load it carried: its friction state and,
             // with the per-length model, the tissue's velocity and the material at the

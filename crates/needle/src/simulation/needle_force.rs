@@ -13,9 +13,9 @@ use crate::config::Membrane;
 use crate::friction::{
     paper_dynamic_friction, paper_next_state, split, FrictionModel, FrictionState,
 };
-use crate::sheath::{front_step, punch_compliance, sheath_step, SheathStep, Tear};
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NodeRole};
+use crate::sheath::{front_step, punch_compliance, sheath_step, SheathStep, Tear};
 use crate::state::Phase;
 use glam::DVec3;
 use needlesim_core::{NodeField, SimError};
@@ -60,8 +60,8 @@ impl Simulation {
             .nodes
             .iter()
             .map(|n| {
-                !self.pinned(n)
-                    && !(n.role == NodeRole::Surface && self.state.phase == Phase::Touching)
+                let waiting = n.role == NodeRole::Surface && self.state.phase == Phase::Touching;
+                !(self.pinned(n) || waiting)
             })
             .collect();
         let end = match self.state.phase {
@@ -74,7 +74,9 @@ impl Simulation {
         let nodes = &self.state.nodes;
         let last = nodes.len().checked_sub(1);
         if let (true, Some(k)) = (self.sheathed(), last) {
-            let before = (0..k).filter(|&j| counted[j]).max_by(|&a, &b| s[a].total_cmp(&s[b]));
+            let before = (0..k)
+                .filter(|&j| counted[j])
+                .max_by(|&a, &b| s[a].total_cmp(&s[b]));
             if let Some(j) = before {
                 let keep = nodes[k].share;
                 l[j] += (1.0 - keep) * l[k];
@@ -263,7 +265,11 @@ impl Simulation {
             if sheathed {
                 self.sheath_forces(&ctx, &mut f, &patch_pos, &mut total, &mut torque)?;
                 tip = self.state.patch.as_ref().map_or(0.0, |p| p.force)
-                    + if front < m { self.state.front.force } else { 0.0 };
+                    + if front < m {
+                        self.state.front.force
+                    } else {
+                        0.0
+                    };
             } else {
                 self.paper_forces(&ctx, &mut f, &mut total);
             }
@@ -287,8 +293,8 @@ impl Simulation {
         let FrictionModel::Paper(pp) = self.contact.friction else {
             unreachable!("the paper's forces with the paper's model");
         };
-        for k in 0..f.len() {
-            let fe = xyz(f[k]);
+        for (k, fk) in f.iter_mut().enumerate() {
+            let fe = xyz(*fk);
             let node = self.state.nodes[k];
             let vn = self.needle_velocity(c.prev, c.now, c.s[k]);
             let vk = xyz(self.state.velocities[k]);
@@ -316,7 +322,7 @@ impl Simulation {
             self.state.nodes[k].axial = phi;
             // The shaft takes the normal part; the node keeps its axial force plus
             // the needle's axial force on it.
-            f[k] = vec4(t * (axial + phi), 0.0);
+            *fk = vec4(t * (axial + phi), 0.0);
             *total += DVec3::from(normal) - t * phi;
         }
     }
@@ -382,8 +388,8 @@ impl Simulation {
                 self.state.patch = Some(patch);
             }
         }
-        for k in 0..f.len() {
-            let fe = xyz(f[k]);
+        for (k, fk) in f.iter_mut().enumerate() {
+            let fe = xyz(*fk);
             let node = self.state.nodes[k];
             if self.pinned(&node) {
                 *total += fe;
@@ -399,8 +405,12 @@ impl Simulation {
             let l = c.lengths[k];
             let ds = c.s[k] - node.sigma;
             let stiffness = layer.shear_stiffness * l;
-            let cap = pl.coefficient * (layer.grip * l + normal.length())
-                + pl.viscous * l * (ds / dt).abs();
+            // The static coefficient until the node slips, the kinetic one while it does.
+            let mu = match node.friction {
+                FrictionState::Stick => pl.static_coefficient(),
+                FrictionState::Slip => pl.coefficient,
+            };
+            let cap = mu * (layer.grip * l + normal.length()) + pl.viscous * l * (ds / dt).abs();
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
             let mut other = 0.0;
@@ -426,12 +436,6 @@ impl Simulation {
                 cap,
             });
             let on_node = phi[0] + other;
-            if std::env::var("NS_DEBUG").is_ok() {
-                eprintln!(
-                    "dbg step {} k {k} role {:?} s {:.6} ds {:.3e} ax_e {:.4} phi {:.4} on {:.4} cap {:.4} l {:.4} v {:?}",
-                    self.stepper.steps(), node.role, c.s[k], ds, axial, phi[0], on_node, cap, l, self.state.velocities.get(k)
-                );
-            }
             let n = &mut self.state.nodes[k];
             n.axial = elastic[0];
             n.circumferential = elastic[1];
@@ -445,7 +449,7 @@ impl Simulation {
             n.normal = normal.to_array();
             // The shaft takes the normal part; the node keeps its axial force plus the
             // needle's axial force on it.
-            f[k] = vec4(t * (axial + on_node), 0.0);
+            *fk = vec4(t * (axial + on_node), 0.0);
             *total += normal - t * on_node;
             *torque += a * phi[1];
         }

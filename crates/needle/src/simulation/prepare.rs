@@ -209,7 +209,9 @@ fn resolve_friction(
         (Err(_), Some(_), Some(_)) => (0.0, 0.0),
         (Err(_), _, _) => return Err(modulus.unwrap_err()),
     };
-    let grip = p.grip.unwrap_or_else(|| grip_from_modulus(young, nu, radius));
+    let grip = p
+        .grip
+        .unwrap_or_else(|| grip_from_modulus(young, nu, radius));
     let shear = p
         .shear_stiffness
         .unwrap_or_else(|| crate::sheath::shaft_stiffness(young, nu, radius, spacing));

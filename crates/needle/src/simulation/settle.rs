@@ -82,9 +82,6 @@ impl Simulation {
         };
         let size = |r: &[DVec3]| r.iter().fold(0.0f64, |a, x| a.max(x.length()));
         let mut r = residual(self)?;
-        if std::env::var("NS_SETTLE").is_ok() {
-            eprintln!("  targets {:?} r0 {:?}", targets.iter().map(|x| x.to_array().map(|v| (v*1e3).round()/1e3)).collect::<Vec<_>>(), r.iter().map(|x| x.to_array().map(|v| (v*1e3).round()/1e3)).collect::<Vec<_>>());
-        }
         // The force scale when the loads are small: what the tissue pushes with now.
         let tol = TOLERANCE * scale.max(0.1 * size(&r));
         if size(&r) <= tol {
@@ -110,7 +107,10 @@ impl Simulation {
                 jac[(3 * k + c, 3 * k + c)] = stiff;
             }
         }
-        let good = (0..n).map(|i| jac[(i, i)]).filter(|x| x.is_finite()).fold(0.0, f64::max);
+        let good = (0..n)
+            .map(|i| jac[(i, i)])
+            .filter(|x| x.is_finite())
+            .fold(0.0, f64::max);
         if good <= 0.0 {
             return Ok(());
         }
@@ -141,9 +141,6 @@ impl Simulation {
                 .collect();
             self.replace_rest(first, &next, &state)?;
             let r2 = residual(self)?;
-            if std::env::var("NS_SETTLE").is_ok() {
-                eprintln!("  iter res {:.3e} -> {:.3e}", size(&r), size(&r2));
-            }
             // Good Broyden: J += (dr - J dx) dx^T / (dx . dx).
             let dr = flat(&r2) - rv;
             let dd = step.dot(&step);
@@ -159,9 +156,6 @@ impl Simulation {
         }
         if size(&r) > best.0 {
             self.replace_rest(first, &best.1, &state)?;
-        }
-        if std::env::var("NS_SETTLE").is_ok() {
-            eprintln!("settle step {} first {first} m {m} tol {tol:.2e} res {:.2e}", self.stepper.steps(), size(&r));
         }
         Ok(())
     }
