@@ -143,6 +143,7 @@ impl Simulation {
             limit: 0.0,
             circumferential: 0.0,
             sigma: s,
+            slide: 0.0,
             normal: [0.0; 3],
             share: 1.0,
             region,

@@ -403,14 +403,19 @@ impl Simulation {
                 unreachable!("regions share the per-length model");
             };
             let l = c.lengths[k];
+            // The node's relative motion since the last step (what the front element
+            // takes) and the part of it the sheath has not taken in implicitly then.
             let ds = c.s[k] - node.sigma;
+            let untaken = ds - node.slide;
             let stiffness = layer.shear_stiffness * l;
             // The static coefficient until the node slips, the kinetic one while it does.
             let mu = match node.friction {
                 FrictionState::Stick => pl.static_coefficient(),
                 FrictionState::Slip => pl.coefficient,
             };
-            let cap = mu * (layer.grip * l + normal.length()) + pl.viscous * l * (ds / dt).abs();
+            let u = self.needle_velocity(c.prev, c.now, c.s[k]).dot(t);
+            let v = xyz(self.state.velocities[k]).dot(t);
+            let cap = mu * (layer.grip * l + normal.length()) + pl.viscous * l * (v - u).abs();
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
             let mut other = 0.0;
@@ -423,22 +428,24 @@ impl Simulation {
                 }
             }
             let mass = 1.0 / self.inv_mass_of(&node) as f64;
-            let u = self.needle_velocity(c.prev, c.now, c.s[k]).dot(t);
-            let v = xyz(self.state.velocities[k]).dot(t);
             let damping = params.damping_factor as f64;
-            let (elastic, phi, slips) = sheath_step(&SheathStep {
+            let out = sheath_step(&SheathStep {
                 elastic: [node.axial, node.circumferential],
-                increment: [-stiffness * ds, stiffness * a * droll],
+                increment: [-stiffness * untaken, 0.0],
+                spin: a * droll / dt,
+                stiffness_dt: stiffness * dt,
                 viscous: layer.shear_viscosity * l,
                 free: damping * (v + dt * (axial / mass + gravity.dot(t))) - u,
                 beta: damping * dt / mass,
                 other,
                 cap,
             });
+            let (elastic, phi, slips) = (out.elastic, out.force, out.slips);
             let on_node = phi[0] + other;
             let n = &mut self.state.nodes[k];
             n.axial = elastic[0];
             n.circumferential = elastic[1];
+            n.slide = dt * out.velocity;
             n.limit = cap;
             n.friction = if slips {
                 FrictionState::Slip
