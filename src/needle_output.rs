@@ -15,9 +15,12 @@ use std::path::{Path, PathBuf};
 /// while it is not inside); `tissue_depth_m` is the depth of the tip in the undeformed
 /// tissue ([`Simulation::tissue_depth`]: 0 while denting the entry surface, empty while
 /// not in contact), which differs from `depth_m` by the dents and the tissue dragged
-/// along.
+/// along. `tip_force_n` is the part of the axial force the tip's elements carry (the
+/// contact before puncture, the cutting and tearing at the crack front; the rest is the
+/// shaft's friction), `torque_nm` the friction's torque about the needle's axis (right-handed
+/// about its direction, resisting a spin).
 pub const NEEDLE_CSV_HEADER: &str = "step,time_s,depth_m,axial_force_n,lateral_force_n,state,\
-active_nodes,needle_nodes,region,tissue_depth_m";
+active_nodes,needle_nodes,region,tissue_depth_m,tip_force_n,torque_nm";
 
 fn state_name(s: PunctureState) -> &'static str {
     match s {
@@ -65,7 +68,7 @@ impl NeedleCsv {
         for s in &h[from..] {
             writeln!(
                 self.out,
-                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{},{}",
+                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{},{},{:.6e},{:.6e}",
                 s.step,
                 s.time,
                 sim.depth_of(s.tip, s.direction),
@@ -77,7 +80,9 @@ impl NeedleCsv {
                 s.region
                     .and_then(|r| sim.region_names().get(r as usize))
                     .map_or("", |n| n.as_str()),
-                s.tissue_depth.map_or(String::new(), |d| format!("{d:.6e}"))
+                s.tissue_depth.map_or(String::new(), |d| format!("{d:.6e}")),
+                s.force.tip,
+                s.force.torque,
             )?;
         }
         self.written = sim.history().last().map(|s| s.step).or(self.written);

@@ -409,6 +409,25 @@ fn bad_needle_tables_name_the_key() {
             with("[[needle.keyframe]]\naction = \"jump\"\nduration = 1.0\n"),
             "jump",
         ),
+        // The sheath's and the tip's keys (crates/needle sheath.rs).
+        (with("contact_radius = 0.0\n"), "needle.contact_radius"),
+        (with("contact_radius = nan\n"), "needle.contact_radius"),
+        (with("point_length = -0.001\n"), "needle.point_length"),
+        (with("point_length = inf\n"), "needle.point_length"),
+        (with("tear_time = -0.01\n"), "needle.tear_time"),
+        (with("tear_time = nan\n"), "needle.tear_time"),
+        (with("friction = { shear_stiffness = -1.0 }\n"), "needle.friction.shear_stiffness"),
+        (with("friction = { shear_stiffness = nan }\n"), "needle.friction.shear_stiffness"),
+        (with("friction = { sheath_viscosity = -2.0 }\n"), "needle.friction.sheath_viscosity"),
+        (with("friction = { sheath_viscosity = inf }\n"), "needle.friction.sheath_viscosity"),
+        (
+            with("[[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\nspeed = 0.01\nduration = 1.0\nspin = nan\n"),
+            "needle.keyframe[0]",
+        ),
+        (
+            with("[[needle.keyframe]]\naction = \"extract\"\nspeed = 0.01\nduration = 1.0\nspin = inf\n"),
+            "needle.keyframe[0]",
+        ),
     ];
     for (text, key) in cases {
         let r = Scene::from_toml_str(&text, Path::new("."))

@@ -5,7 +5,7 @@
 //! node, the axial part is `a = f . t` (eq. 3) and the normal part `f_N = f - a t`
 //! (eq. 4). The shaft holds every node on its line (bilateral); friction acts along it.
 //!
-//! # `model = "per_length"` (default): Coulomb friction per unit length, implicit Karnopp
+//! # `model = "per_length"` (default): Coulomb friction per unit length, through a sheath
 //!
 //! Okamura, Simone and O'Leary 2004 (IEEE TBME 51(10)) split the insertion force into the
 //! capsule's stiffness before puncture, friction along the inserted shaft and a cutting

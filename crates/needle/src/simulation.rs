@@ -186,6 +186,22 @@ impl Simulation {
         Ok(())
     }
 
+    /// Turns the needle about its own axis to `roll` (radians, right-handed about its
+    /// direction) for the next step: a haptic device's or a robot's spin. The change over
+    /// the step is the circumferential sliding the shaft's friction sees
+    /// ([`crate::sheath`]); the scene's script, if any, is dropped. A roll that is not
+    /// finite is an error ([`crate::NeedleError::BadRoll`]).
+    pub fn set_roll(&mut self, roll: f64) -> Result<(), SimulationError> {
+        let n = self
+            .state
+            .needle
+            .as_mut()
+            .ok_or(SimulationError::NoNeedle)?;
+        n.set_roll(roll)?;
+        self.script = None;
+        Ok(())
+    }
+
     /// The puncture state: where the tip is (Outside also past the far surface, with the
     /// shaft still in the tissue: see [`Simulation::needle_nodes`]).
     pub fn state(&self) -> PunctureState {

@@ -413,10 +413,23 @@ impl PySimulation {
     }
 
     /// Puts the needle at a pose for the next step (base point and direction base ->
-    /// tip); the scene's keyframes, if any, stop playing.
-    fn set_pose(&self, base: [f64; 3], direction: [f64; 3]) -> PyResult<()> {
+    /// tip, and optionally its roll about its own axis in radians: a spin); the scene's
+    /// keyframes, if any, stop playing.
+    #[pyo3(signature = (base, direction, roll=None))]
+    fn set_pose(&self, base: [f64; 3], direction: [f64; 3], roll: Option<f64>) -> PyResult<()> {
         self.idle()?;
-        self.lock().set_pose(base, direction).map_err(sim_error)
+        let mut sim = self.lock();
+        sim.set_pose(base, direction).map_err(sim_error)?;
+        if let Some(r) = roll {
+            sim.set_roll(r).map_err(sim_error)?;
+        }
+        Ok(())
+    }
+
+    /// The needle's roll about its own axis (radians), or None without a needle.
+    #[getter]
+    fn roll(&self) -> Option<f64> {
+        self.lock().needle().map(|n| n.roll())
     }
 
     /// Needle tip, shape (3,), or None without a needle.
@@ -462,7 +475,9 @@ impl PySimulation {
     }
 
     /// Force of the tissue on the needle in the last step: {"axial": N (positive resists
-    /// insertion), "lateral": N, "total": array (3,)}.
+    /// insertion), "lateral": N, "total": array (3,), "tip": N (the part of the axial
+    /// force the tip's elements carry; the rest is the shaft's friction), "torque": N m
+    /// (the friction's torque about the needle's axis)}.
     #[getter]
     fn needle_force<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let f = self.lock().needle_force();
@@ -470,6 +485,8 @@ impl PySimulation {
         d.set_item("axial", f.axial)?;
         d.set_item("lateral", f.lateral)?;
         d.set_item("total", PyArray1::from_vec(py, f.total.to_vec()))?;
+        d.set_item("tip", f.tip)?;
+        d.set_item("torque", f.torque)?;
         Ok(d)
     }
 
@@ -509,7 +526,7 @@ impl PySimulation {
     }
 
     /// Every step's needle record as numpy arrays: step, time, depth (m past the first
-    /// contact), axial, lateral (N), active_nodes, needle_nodes, and state and region
+    /// contact), axial, lateral, tip (N), torque (N m), active_nodes, needle_nodes, and state and region
     /// (lists of str; region is the tissue region the tip is in, "" when not inside), and
     /// tissue_depth (m: the tip's depth in the undeformed tissue, NaN, numpy's missing
     /// value, while the tip is not in contact).
@@ -539,6 +556,8 @@ impl PySimulation {
         )?;
         d.set_item("axial", PyArray1::from_vec(py, col(&|s| s.force.axial)))?;
         d.set_item("lateral", PyArray1::from_vec(py, col(&|s| s.force.lateral)))?;
+        d.set_item("tip", PyArray1::from_vec(py, col(&|s| s.force.tip)))?;
+        d.set_item("torque", PyArray1::from_vec(py, col(&|s| s.force.torque)))?;
         let ints = |f: &dyn Fn(&needlesim::needle::NeedleSample) -> usize| -> Vec<i64> {
             h.iter().map(|s| f(s) as i64).collect()
         };

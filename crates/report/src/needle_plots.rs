@@ -143,7 +143,7 @@ mod tests {
         for k in 0..200 {
             let t = k as f64 * 1e-3;
             csv.push_str(&format!(
-                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4,{},{}\n",
+                "{k},{t:.6e},{:.6e},{:.6e},{:.6e},inside,3,4,{},{},0.0,0.0\n",
                 t * 0.01 - 1e-4,
                 (t * 30.0).sin(),
                 0.1 * t,

@@ -60,6 +60,8 @@ pub struct Row {
     pub state: PunctureState,
     /// Region the tip is in.
     pub region: Option<u16>,
+    /// Needle direction.
+    pub direction: [f64; 3],
 }
 
 /// The rows of a simulation's history.
@@ -72,6 +74,7 @@ pub fn rows(sim: &Simulation) -> Vec<Row> {
             force: s.force.axial,
             state: s.state,
             region: s.region,
+            direction: s.direction,
         })
         .collect()
 }
@@ -95,6 +98,10 @@ pub struct Audit {
     /// Median step change over the local force while the needle is held, % (`None`
     /// without held rows).
     pub held: Option<f64>,
+    /// The held rows split: the needle still (a pause), %.
+    pub still: Option<f64>,
+    /// ... and turning about a point at constant depth (the paper scenes' rotation), %.
+    pub rotating: Option<f64>,
     /// The same while it moves.
     pub moving: Option<f64>,
     /// Inside rows advancing with a negative axial force.
@@ -212,9 +219,19 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
     let dd: Vec<f64> = (0..n)
         .map(|i| if i + 1 < n { d[i + 1] - d[i] } else { 0.0 })
         .collect();
+    // Turning: the needle's direction changes over the step (the paper scenes' rotation
+    // about the entry point keeps the depth, which the shared audit counts as held).
+    let turning: Vec<bool> = (0..n)
+        .map(|i| {
+            i + 1 < n
+                && (0..3).any(|c| (rows[i + 1].direction[c] - rows[i].direction[c]).abs() > 1e-12)
+        })
+        .collect();
     let held: Vec<usize> = (0..n)
         .filter(|&i| inside[i] && dd[i].abs() < 1e-9)
         .collect();
+    let still: Vec<usize> = held.iter().copied().filter(|&i| !turning[i]).collect();
+    let rotating: Vec<usize> = held.iter().copied().filter(|&i| turning[i]).collect();
     let moving: Vec<usize> = (0..n)
         .filter(|&i| inside[i] && dd[i].abs() >= 1e-9)
         .collect();
@@ -263,6 +280,8 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
         buzz_max_body: 100.0 * buzz_max_body,
         buzz_share,
         held: med(&held),
+        still: med(&still),
+        rotating: med(&rotating),
         moving: med(&moving),
         negative_advancing,
         reversal,
@@ -455,12 +474,14 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         let sim = run(&table, None)?;
         let a = audit(&rows(&sim), None);
         progress(&format!(
-            "realism      {name}: {} jumps, buzz {:.2}% ({:.2}% before the last 20 ms), {:.2}% of rows over 2%, held {}, moving {}",
+            "realism      {name}: {} jumps, buzz {:.2}% ({:.2}% before the last 20 ms), {:.2}% of rows over 2%, held {} (still {}, rotating {}), moving {}",
             a.jumps,
             a.buzz_max,
             a.buzz_max_body,
             100.0 * a.buzz_share,
             a.held.map_or("-".into(), |x| format!("{x:.4}%")),
+            a.still.map_or("-".into(), |x| format!("{x:.4}%")),
+            a.rotating.map_or("-".into(), |x| format!("{x:.4}%")),
             a.moving.map_or("-".into(), |x| format!("{x:.4}%")),
         ));
         rep.scenes
@@ -613,6 +634,11 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
         row("buzz_max_before_last_20ms_percent", a.buzz_max_body);
         row("buzz_share_over_2_percent", a.buzz_share);
         row("median_step_held_percent", a.held.unwrap_or(f64::NAN));
+        row("median_step_still_percent", a.still.unwrap_or(f64::NAN));
+        row(
+            "median_step_rotating_percent",
+            a.rotating.unwrap_or(f64::NAN),
+        );
         row("median_step_moving_percent", a.moving.unwrap_or(f64::NAN));
         row("negative_while_advancing_rows", a.negative_advancing as f64);
         row("reversal_max_step_percent", a.reversal.unwrap_or(f64::NAN));
@@ -719,25 +745,27 @@ pub fn markdown(md: &mut String, r: &Realism) {
     writeln!(md, "\n## Needle force realism\n").unwrap();
     writeln!(
         md,
-        "Figures of `shared/tools/force_audit.py` (jumps: steps changing by more than 5% of the local force, inside and not within 20 ms of a puncture; buzz: RMS above about 50 Hz over 20 ms over the local force; held/moving: median step change; negative: rows advancing with F < 0; reversal: largest step within 50 ms after a reversal over the force there). The audit's zero padding reads a buzz of about 40% in the last 10 ms of a series that ends with a force on the needle: the buzz is given with and without the last 20 ms. {:.0} s on this machine.\n",
+        "Figures of `shared/tools/force_audit.py` (jumps: steps changing by more than 5% of the local force, inside and not within 20 ms of a puncture; buzz: RMS above about 50 Hz over 20 ms over the local force; held/moving: median step change, the held rows split into the needle still and turning at constant depth; negative: rows advancing with F < 0; reversal: largest step within 50 ms after a reversal over the force there). The audit's zero padding reads a buzz of about 40% in the last 10 ms of a series that ends with a force on the needle: the buzz is given with and without the last 20 ms. {:.0} s on this machine.\n",
         r.seconds
     )
     .unwrap();
     writeln!(
         md,
-        "| scene | nodes | jumps | buzz max % (before last 20 ms) | rows buzz > 2% | held % | moving % | negative | reversal % |"
+        "| scene | nodes | jumps | buzz max % (before last 20 ms) | rows buzz > 2% | held % (still / rotating) | moving % | negative | reversal % |"
     )
     .unwrap();
     writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|").unwrap();
     for (name, nodes, a) in &r.scenes {
         writeln!(
             md,
-            "| {name} | {nodes} | {} | {:.2} ({:.2}) | {:.2}% | {} | {} | {} | {} |",
+            "| {name} | {nodes} | {} | {:.2} ({:.2}) | {:.2}% | {} ({} / {}) | {} | {} | {} |",
             a.jumps,
             a.buzz_max,
             a.buzz_max_body,
             100.0 * a.buzz_share,
             pct(a.held),
+            pct(a.still),
+            pct(a.rotating),
             pct(a.moving),
             a.negative_advancing,
             pct(a.reversal)
@@ -826,6 +854,7 @@ mod tests {
             force,
             state: PunctureState::Inside,
             region: Some(0),
+            direction: [1.0, 0.0, 0.0],
         }
     }
 
@@ -871,5 +900,29 @@ mod tests {
         assert!((r - 100.0 * 0.002 / 1.1).abs() < 0.01, "{r}");
         // Advancing at 1.0 then 1.1 N: 10% off the cutting force 1 N.
         assert!((a.flatness.unwrap() - 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn audit_splits_held_rows_into_still_and_turning() {
+        // Held at 1 mm for 1 s with the force creeping by 0.1% a step, turning about the
+        // entry for the first half (the direction changes, the depth does not), still for
+        // the second with the force constant.
+        let mut rows = Vec::new();
+        for i in 0..1000 {
+            let t = i as f64 * 1e-3;
+            let mut r = row(t, 1e-3, 1.0);
+            if t < 0.5 {
+                let a = 0.01 * t;
+                r.direction = [a.cos(), a.sin(), 0.0];
+                r.force = 1.0 + 1e-3 * i as f64;
+            } else {
+                r.force = 1.5;
+            }
+            rows.push(r);
+        }
+        let a = audit(&rows, None);
+        let (still, rotating) = (a.still.unwrap(), a.rotating.unwrap());
+        assert!(still < 1e-9, "{still}");
+        assert!(rotating > 0.05 && rotating < 0.1, "{rotating}");
     }
 }

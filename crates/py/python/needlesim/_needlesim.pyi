@@ -66,8 +66,11 @@ class Simulation:
         """The surface as (vertices (m, 3), faces (t, 3) into vertices)."""
     def screenshot(self, path: Union[str, PathLike[str]], width: int = 800, height: int = 600) -> None:
         """Renders the simulation now to a PNG (offscreen; RuntimeError without a Vulkan driver)."""
-    def set_pose(self, base: Tuple[float, float, float], direction: Tuple[float, float, float]) -> None:
-        """Puts the needle at a pose for the next step; keyframes stop playing."""
+    def set_pose(self, base: Tuple[float, float, float], direction: Tuple[float, float, float], roll: Optional[float] = None) -> None:
+        """Puts the needle at a pose (and optionally its roll about its axis, rad) for the next step; keyframes stop playing."""
+    @property
+    def roll(self) -> Optional[float]:
+        """Needle roll about its own axis in rad, None without a needle."""
     @property
     def tip(self) -> Optional[npt.NDArray[np.float64]]:
         """Needle tip (3,), None without a needle."""
@@ -90,9 +93,9 @@ class Simulation:
         the body, from the last step's forces."""
     @property
     def needle_force(self) -> Dict[str, Any]:
-        """{"axial": float, "lateral": float, "total": (3,) array} in N of the last step."""
+        """{"axial", "lateral", "tip": float N, "torque": float N m, "total": (3,) array N} of the last step."""
     def history(self, clear: bool = False) -> Dict[str, Any]:
-        """Per-step arrays: step, time, depth, axial, lateral, active_nodes, needle_nodes;
+        """Per-step arrays: step, time, depth, axial, lateral, tip, torque, active_nodes, needle_nodes;
         state as a list of str. clear=True also empties the record (streaming)."""
     @property
     def active_nodes(self) -> int: ...
