@@ -329,8 +329,113 @@ pub struct Realism {
     /// The dent of a flat punch of the liver's contact radius on a half-space of its
     /// material at the puncture force, m.
     pub dent_half_space: f64,
+    /// The energy of the node events of the liver scene's insertion.
+    pub events: Option<EventEnergy>,
     /// Run time, s.
     pub seconds: f64,
+}
+
+/// What the node events (a needle node added or removed while inside) put into the
+/// tissue's motion, against the work the needle does meanwhile: for each event, the rise
+/// of the tissue's kinetic energy over the 20 ms after it (its largest value minus the
+/// value before the event) and the needle's work over those 20 ms (`F` times the
+/// advance). Windows of the same length with no event give the background.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EventEnergy {
+    /// Node events counted.
+    pub events: usize,
+    /// Median and largest kinetic energy rise after an event, J.
+    pub rise_median: f64,
+    /// Largest rise, J.
+    pub rise_max: f64,
+    /// Median rise over 20 ms windows without an event, J.
+    pub background: f64,
+    /// Median needle work over the 20 ms after an event, J.
+    pub work_median: f64,
+}
+
+/// Runs the liver scene `table` for `seconds`, recording the tissue's kinetic energy at
+/// every step (from the positions' inverse mass and the velocities), and measures the
+/// node events ([`EventEnergy`]).
+fn event_energy(table: &toml::Table, seconds: f64) -> Result<EventEnergy, ReportError> {
+    let text = toml::to_string(table).map_err(|e| ReportError::Scene(e.to_string()))?;
+    let scene = Scene::from_toml_str(&text, &scene_dir()).map_err(SimulationError::from)?;
+    let prep = Simulation::prepare(&scene)?;
+    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
+        .map_err(needlesim::runner::RunError::from)?;
+    let mut sim = prep.start(Box::new(b))?;
+    let steps = (seconds / sim.dt()).ceil() as usize;
+    let mut energy = Vec::with_capacity(steps);
+    let (mut p, mut v) = (Vec::new(), Vec::new());
+    for _ in 0..steps {
+        sim.step()?;
+        let n = sim.editor().n_active();
+        p.resize(n, [0.0f32; 4]);
+        v.resize(n, [0.0f32; 4]);
+        let backend = sim.backend();
+        backend
+            .read(needlesim_core::NodeField::Position, 0..n, &mut p)
+            .map_err(SimulationError::from)?;
+        backend
+            .read(needlesim_core::NodeField::Velocity, 0..n, &mut v)
+            .map_err(SimulationError::from)?;
+        let e: f64 = p
+            .iter()
+            .zip(&v)
+            .filter(|(x, _)| x[3] > 0.0)
+            .map(|(x, u)| {
+                let v2: f64 = u[..3].iter().map(|c| (*c as f64).powi(2)).sum();
+                0.5 * v2 / x[3] as f64
+            })
+            .sum();
+        energy.push(e);
+    }
+    let h = sim.history();
+    let r = rows(&sim);
+    let window = (0.02 / sim.dt()).round() as usize;
+    let first = r.iter().position(|x| x.state == PunctureState::Inside);
+    let Some(first) = first else {
+        return Ok(EventEnergy::default());
+    };
+    let start = first + window;
+    let mut rises = Vec::new();
+    let mut works = Vec::new();
+    let mut quiet = Vec::new();
+    let rise = |k: usize| {
+        let top = energy[k..(k + window).min(energy.len())]
+            .iter()
+            .cloned()
+            .fold(0.0, f64::max);
+        top - energy[k - 1]
+    };
+    let mut k = start.max(1);
+    while k + window < h.len() {
+        let event = (k..k + window).find(|&i| h[i].needle_nodes != h[i - 1].needle_nodes);
+        match event {
+            Some(e) if e + window < h.len() => {
+                rises.push(rise(e));
+                works.push(
+                    (e..e + window)
+                        .map(|i| r[i].force * (r[i + 1].depth - r[i].depth))
+                        .sum::<f64>(),
+                );
+                k = e + window;
+            }
+            Some(_) => break,
+            None => {
+                quiet.push(rise(k));
+                k += window;
+            }
+        }
+    }
+    let med = |v: &[f64]| median(v.to_vec()).unwrap_or(f64::NAN);
+    Ok(EventEnergy {
+        events: rises.len(),
+        rise_median: med(&rises),
+        rise_max: rises.iter().cloned().fold(0.0, f64::max),
+        background: med(&quiet),
+        work_median: med(&works),
+    })
 }
 
 fn scene_dir() -> std::path::PathBuf {
@@ -347,8 +452,6 @@ fn read_scene(name: &str) -> Result<toml::Table, ReportError> {
         .map_err(|e| ReportError::Scene(format!("{}: {e}", path.display())))
 }
 
-/// Sets the dotted key `key` of `table` (every part but the last must exist; the part
-/// after an array's name is an index into it).
 /// Moves the liver scene's fixed set (`above` along x) onto the last lattice plane at
 /// spacing `h`: a spacing that does not divide the block leaves that plane short of the
 /// face, and the scene's `above = 0.0799` would then hold no node.
@@ -360,6 +463,8 @@ fn hold_far_face(table: &mut toml::Table, h: f64) {
     set(table, "fixed.0.above", (last - 0.1 * h).into());
 }
 
+/// Sets the dotted key `key` of `table` (every part but the last must exist; the part
+/// after an array's name is an index into it).
 fn set(table: &mut toml::Table, key: &str, value: toml::Value) {
     fn walk(t: &mut toml::Table, parts: &[&str], value: toml::Value, key: &str) {
         if let [last] = parts {
@@ -595,6 +700,13 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         ));
         rep.speeds.push((v, f));
     }
+    // The node events' energy, on the liver at the section's spacing.
+    let ev = event_energy(&liver, duration)?;
+    progress(&format!(
+        "realism      liver node events: {} events, kinetic energy rise median {:.2e} J (largest {:.2e} J, without events {:.2e} J), needle work over the same 20 ms {:.2e} J",
+        ev.events, ev.rise_median, ev.rise_max, ev.background, ev.work_median
+    ));
+    rep.events = Some(ev);
     // Spin at one revolution per second while inserting.
     let radius = liver["needle"]["radius"].as_float().expect("radius");
     let omega = 2.0 * std::f64::consts::PI;
@@ -651,6 +763,17 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
             a.flatness.unwrap_or(f64::NAN)
         )
         .unwrap();
+    }
+    if let Some(e) = &r.events {
+        for (q, x) in [
+            ("events", e.events as f64),
+            ("kinetic_rise_median_j", e.rise_median),
+            ("kinetic_rise_max_j", e.rise_max),
+            ("kinetic_rise_without_events_j", e.background),
+            ("needle_work_median_j", e.work_median),
+        ] {
+            writeln!(csv, "node_events,liver,{q},{x:e}").unwrap();
+        }
     }
     for (study, v) in [("spacing", &r.spacing), ("model", &r.models)] {
         for d in v {
@@ -778,6 +901,19 @@ pub fn markdown(md: &mut String, r: &Realism) {
             "\nFriction off (liver scene, coefficient 0): the axial force stays within {:.2}% of the cutting force {c} N between the puncture (20 ms after) and the end of the insertion; {} jumps.\n",
             a.flatness.unwrap_or(f64::NAN),
             a.jumps
+        )
+        .unwrap();
+    }
+    if let Some(e) = &r.events {
+        writeln!(
+            md,
+            "\nNode events (liver scene, insertion): {} additions and removals while inside. The tissue's kinetic energy rises by {:.2e} J (median; largest {:.2e} J) over the 20 ms after an event, against {:.2e} J over 20 ms windows without one, while the needle does {:.2e} J of work in those 20 ms: an event puts {:.2}% of that work (median) into motion. (The elastic energy of the models is not computed, so the budget's elastic side is not reported.)\n",
+            e.events,
+            e.rise_median,
+            e.rise_max,
+            e.background,
+            e.work_median,
+            100.0 * e.rise_median / e.work_median
         )
         .unwrap();
     }
