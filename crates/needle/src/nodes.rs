@@ -44,9 +44,10 @@ pub struct NeedleNode {
     /// (per-length model: the sheath's relative motion is measured from it).
     #[serde(default)]
     pub sigma: f64,
-    /// The node's relative motion along the needle over the current step as the sheath
-    /// took it in (implicitly) at the last step, m: the next step's measured motion minus
-    /// this is what the sheath has still to take ([`crate::sheath::sheath_step`]).
+    /// The node's own motion along the needle over the last step as the sheath took it
+    /// in (implicitly, end-of-step velocity times the step), m: the next step's measured
+    /// motion minus this is what the sheath has still to take
+    /// ([`crate::sheath::sheath_step`]).
     #[serde(default)]
     pub slide: f64,
     /// The tissue's force on the node normal to the shaft in the last step (world frame,

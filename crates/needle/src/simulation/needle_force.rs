@@ -403,17 +403,24 @@ impl Simulation {
                 unreachable!("regions share the per-length model");
             };
             let l = c.lengths[k];
+            let u = self.needle_velocity(c.prev, c.now, c.s[k]).dot(t);
             // The node's relative motion since the last step (what the front element
-            // takes) and the part of it the sheath has not taken in implicitly then.
+            // takes): the node's own motion over the last step less the needle's over
+            // this one. The sheath takes both implicitly (the node's in the last step,
+            // the needle's in this one), so what is left for it is the node's motion
+            // that the integrator did not give (an edit placing the node), zero
+            // otherwise. Subtracting only the last step's relative motion instead left
+            // `dt` times every change of the needle's speed in the sheath: a spurious
+            // step of `K dt du` at each start, stop and reversal (10% of the force at the
+            // reversal of `needle_insert_extract.toml`).
             let ds = c.s[k] - node.sigma;
-            let untaken = ds - node.slide;
+            let untaken = ds + dt * u - node.slide;
             let stiffness = layer.shear_stiffness * l;
             // The static coefficient until the node slips, the kinetic one while it does.
             let mu = match node.friction {
                 FrictionState::Stick => pl.static_coefficient(),
                 FrictionState::Slip => pl.coefficient,
             };
-            let u = self.needle_velocity(c.prev, c.now, c.s[k]).dot(t);
             let v = xyz(self.state.velocities[k]).dot(t);
             let cap = mu * (layer.grip * l + normal.length()) + pl.viscous * l * (v - u).abs();
             // The needle's other pushes on the node: the tip's element at the front, the
@@ -445,7 +452,7 @@ impl Simulation {
             let n = &mut self.state.nodes[k];
             n.axial = elastic[0];
             n.circumferential = elastic[1];
-            n.slide = dt * out.velocity;
+            n.slide = dt * (out.velocity + u);
             n.limit = cap;
             n.friction = if slips {
                 FrictionState::Slip
