@@ -673,11 +673,11 @@ fn a_reversal_moves_the_sheath_by_the_needles_travel_once() {
         .next()
         .unwrap()
         .replace(
-        "friction = { coefficient = 0.3 }",
-        &format!(
+            "friction = { coefficient = 0.3 }",
+            &format!(
             "friction = {{ coefficient = 0.3, shear_stiffness = {k:.1}, sheath_viscosity = 0.0 }}"
         ),
-    );
+        );
     assert!(base.contains("shear_stiffness"));
     let keyframes = "[[needle.keyframe]]\naction = \"move\"\ndirection = [1.0, 0.0, 0.0]\n\
         speed = 0.025\nduration = 2.0\n[[needle.keyframe]]\naction = \"pause\"\n\
