@@ -17,8 +17,8 @@
 //!                                # lets go of its load, and the cutting force builds up,
 //!                                # while the point passes (default: an 18-degree bevel,
 //!                                # diameter / tan 18 deg)
-//! tear_time = 0.01               # s: a membrane that gave lets go of its load within
-//!                                # this time at most (default 10 ms)
+//! tear_time = 0.015              # s: a membrane that gave lets go of its load within
+//!                                # this time at most (default 15 ms)
 //! friction = { coefficient = 0.3, grip = 40.0 }      # per unit length (default model)
 //! # friction = { model = "paper", static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
 //!
@@ -86,7 +86,7 @@ pub struct NeedleConfig {
     #[serde(default)]
     pub point_length: Option<f64>,
     /// Time within which a membrane that gave lets go of the load it carried beyond the
-    /// cutting force, s (per-length model; default 10 ms, [`crate::sheath::Tear`]).
+    /// cutting force, s (per-length model; default 15 ms, [`crate::sheath::Tear`]).
     #[serde(default)]
     pub tear_time: Option<f64>,
     /// Stick-slip friction (read from the `friction` table by [`FrictionModel::from_value`]).

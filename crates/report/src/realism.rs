@@ -358,12 +358,7 @@ pub struct EventEnergy {
 /// every step (from the positions' inverse mass and the velocities), and measures the
 /// node events ([`EventEnergy`]).
 fn event_energy(table: &toml::Table, seconds: f64) -> Result<EventEnergy, ReportError> {
-    let text = toml::to_string(table).map_err(|e| ReportError::Scene(e.to_string()))?;
-    let scene = Scene::from_toml_str(&text, &scene_dir()).map_err(SimulationError::from)?;
-    let prep = Simulation::prepare(&scene)?;
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
-        .map_err(needlesim::runner::RunError::from)?;
-    let mut sim = prep.start(Box::new(b))?;
+    let (_, mut sim) = start(table)?;
     let steps = (seconds / sim.dt()).ceil() as usize;
     let mut energy = Vec::with_capacity(steps);
     let (mut p, mut v) = (Vec::new(), Vec::new());
@@ -489,14 +484,20 @@ fn set(table: &mut toml::Table, key: &str, value: toml::Value) {
     walk(table, &parts, value, key);
 }
 
-/// Runs the scene `table` on the CPU (all threads) for its run length or `seconds`.
-fn run(table: &toml::Table, seconds: Option<f64>) -> Result<Simulation, ReportError> {
+/// The scene `table` and its simulation started on the CPU (all threads).
+fn start(table: &toml::Table) -> Result<(Scene, Simulation), ReportError> {
     let text = toml::to_string(table).map_err(|e| ReportError::Scene(e.to_string()))?;
     let scene = Scene::from_toml_str(&text, &scene_dir()).map_err(SimulationError::from)?;
     let prep = Simulation::prepare(&scene)?;
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
         .map_err(needlesim::runner::RunError::from)?;
-    let mut sim = prep.start(Box::new(b))?;
+    let sim = prep.start(Box::new(b))?;
+    Ok((scene, sim))
+}
+
+/// Runs the scene `table` on the CPU (all threads) for its run length or `seconds`.
+fn run(table: &toml::Table, seconds: Option<f64>) -> Result<Simulation, ReportError> {
+    let (scene, mut sim) = start(table)?;
     let all = scene
         .run
         .steps_at(sim.dt())
