@@ -701,3 +701,33 @@ fn a_reversal_moves_the_sheath_by_the_needles_travel_once() {
         "shaft force change {change} N against K L v dt {bound} N"
     );
 }
+
+/// A needle entering 9 mm from the edge of the gel phantom (10 mm spacing): the contact
+/// patch (radius `2 h`) reaches round the edge, and only the face the needle touches may
+/// carry it. When the side face's nodes were taken in, their deeper mean put the patch
+/// behind the tip, the tip was let go at once and the needle never entered.
+#[test]
+fn a_needle_entering_near_an_edge_punctures_and_goes_in() {
+    let text = include_str!("../scenes/phantom_insertion.toml").replace(
+        "base = [-0.102, 0.0312, 0.0288]",
+        "base = [-0.102, 0.0092, 0.0288]",
+    );
+    assert!(text.contains("0.0092"));
+    let scene = Scene::from_toml_str(&text, Path::new("scenes")).unwrap();
+    let mut sim = cpu_sim(&scene);
+    let steps = (scene.run.duration.unwrap() / sim.dt()) as u64;
+    let states = run_checked(&mut sim, steps);
+    assert_eq!(
+        states,
+        [
+            PunctureState::Outside,
+            PunctureState::Touching,
+            PunctureState::Inside
+        ]
+    );
+    assert!(
+        sim.needle_nodes().len() >= 3,
+        "{}",
+        sim.needle_nodes().len()
+    );
+}

@@ -55,7 +55,21 @@
 //!   compliance the patch lacks: the punch's minus the patch load's own half-space
 //!   compliance (Boussinesq), computed for the actual nodes and weights
 //!   ([`patch_compliance`]). The dent at a force then converges with refinement and
-//!   depends on the tissue model only through its far field.
+//!   depends on the tissue model only through its far field, to the extent that the
+//!   lattice answers the patch as the continuum does. Measured on the liver scene (1 N):
+//!   with `R_p = 2 h` the co-rotated Debunne lattice is stiffer than the Boussinesq
+//!   estimate by a fixed share of a compliance that grows as `1 / h`, so the dent goes as
+//!   `7.97 mm - 4.7 mm^2 / h` (6.52, 6.97, 7.25 mm at 3.35, 4.71, 6.42 mm spacing), and
+//!   the mass-spring lattice is far softer (15.9 mm). A wider patch resolves it: with
+//!   `3 h` 7.73-7.80 mm, with `4 h` 7.92-7.94 mm across those spacings (punch on a
+//!   half-space 7.97 mm, scikit-fem on the block 7.96 mm, `reference/needle_dent_fem.md`)
+//!   and 7.92 / 8.00 / 9.36 / 9.18 mm for co-rotated Debunne, point based, shape matching
+//!   and mass-spring. It is not the default yet: with `4 h` the wider release after the
+//!   puncture rings the undamped tissue (the friction-free liver's cutting force dips
+//!   6.7% 60 ms later), the first layer of `tests/layers.rs` needs 2 mm more to relax,
+//!   and a GPU run's node events drift up to 15 steps from the CPU's. Only the triangles
+//!   facing the needle count (outward normal within 60 degrees of against it): a patch
+//!   that reaches round the edge of a small body must not take its sides in.
 //! - **Tear** ([`Tear`]): when a membrane gives, its stored load is not dropped in one
 //!   step: the element's cap falls linearly to zero (to the cutting force at an inner
 //!   membrane) as the tip advances `tear_length` into the tissue behind it (by default

@@ -214,7 +214,8 @@ impl Simulation {
         Ok(())
     }
 
-    /// The contact patch around the Surface node just added ([`crate::sheath::Patch`]): the surface nodes within `R_p = max(2 h, 1.3 R_c)` of
+    /// The contact patch around the Surface node just added ([`crate::sheath::Patch`]):
+    /// the surface nodes within `R_p = max(2 h, 1.3 R_c)` of
     /// it at rest, weighted `(1 - (r / R_p)^2)^2` with the Surface node itself, and the
     /// stiffness of the sub-grid element that makes the patch as compliant as a rigid
     /// punch of the contact radius `R_c` on a half-space of the touched region's material.
@@ -227,11 +228,26 @@ impl Simulation {
         let n_mesh = self.editor.n_mesh() as u32;
         let rest = |v: u32| DVec3::from(self.rest_of(v));
         let centre = rest(surface_node.index);
-        // Surface cells: a third of every rest triangle at each corner.
+        // Surface cells: a third of every rest triangle at each corner, of the triangles
+        // that face the needle (outward normal within 60 degrees of against it): the
+        // contact is on the touched face, not on the sides of a body the patch reaches
+        // around (a patch wider than a small block took its side faces in, and their
+        // deeper mean let the tip go at once).
+        let axis = DVec3::from(
+            self.state
+                .needle
+                .as_ref()
+                .map_or([1.0, 0.0, 0.0], |n| n.direction()),
+        );
         let mut cells: Vec<(u32, f64)> = Vec::new();
         for tri in self.state.surface.triangles() {
             let [a, b, c] = tri.map(rest);
-            let third = (b - a).cross(c - a).length() / 6.0;
+            let normal = (b - a).cross(c - a);
+            let third = normal.length() / 6.0;
+            let facing = normal.dot(axis) <= -0.5 * normal.length();
+            if !facing && !tri.contains(&surface_node.index) {
+                continue;
+            }
             for &v in tri {
                 if v >= n_mesh && v != surface_node.index {
                     continue;
