@@ -70,13 +70,24 @@ fn sim_of(text: &str, base: &Path) -> Result<Simulation, ReportError> {
     sim_for(text, base, None)
 }
 
-/// The scene run for its `run.steps`, or for `seconds` if fewer.
-fn sim_for(text: &str, base: &Path, seconds: Option<f64>) -> Result<Simulation, ReportError> {
+/// The scene `text` (paths relative to `base`) and its simulation started on the CPU
+/// (all threads).
+pub(crate) fn start_cpu(text: &str, base: &Path) -> Result<(Scene, Simulation), ReportError> {
     let scene = Scene::from_toml_str(text, base).map_err(SimulationError::from)?;
     let prep = Simulation::prepare(&scene)?;
     let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
         .map_err(needlesim::runner::RunError::from)?;
-    let mut sim = prep.start(Box::new(b))?;
+    let sim = prep.start(Box::new(b))?;
+    Ok((scene, sim))
+}
+
+/// The scene run for its `run.steps`, or for `seconds` if fewer.
+pub(crate) fn sim_for(
+    text: &str,
+    base: &Path,
+    seconds: Option<f64>,
+) -> Result<Simulation, ReportError> {
+    let (scene, mut sim) = start_cpu(text, base)?;
     let all = scene
         .run
         .steps_at(sim.dt())

@@ -28,9 +28,9 @@
 //! with and without the series' last 20 ms.
 
 use crate::error::ReportError;
-use crate::needle::line_fit;
+use crate::needle::{line_fit, sim_for, start_cpu};
 use crate::plot::{line_plot, Labels, Series};
-use needlesim_core::{CpuBackend, Scene, Threading};
+use needlesim_core::Scene;
 use needlesim_needle::{NeedleSample, PunctureState, Simulation, SimulationError};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -487,27 +487,13 @@ fn set(table: &mut toml::Table, key: &str, value: toml::Value) {
 /// The scene `table` and its simulation started on the CPU (all threads).
 fn start(table: &toml::Table) -> Result<(Scene, Simulation), ReportError> {
     let text = toml::to_string(table).map_err(|e| ReportError::Scene(e.to_string()))?;
-    let scene = Scene::from_toml_str(&text, &scene_dir()).map_err(SimulationError::from)?;
-    let prep = Simulation::prepare(&scene)?;
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel)
-        .map_err(needlesim::runner::RunError::from)?;
-    let sim = prep.start(Box::new(b))?;
-    Ok((scene, sim))
+    start_cpu(&text, &scene_dir())
 }
 
 /// Runs the scene `table` on the CPU (all threads) for its run length or `seconds`.
 fn run(table: &toml::Table, seconds: Option<f64>) -> Result<Simulation, ReportError> {
-    let (scene, mut sim) = start(table)?;
-    let all = scene
-        .run
-        .steps_at(sim.dt())
-        .map_err(SimulationError::from)?;
-    let steps = match seconds {
-        Some(t) => all.min((t / sim.dt()).ceil() as u64),
-        None => all,
-    };
-    sim.step_n(steps)?;
-    Ok(sim)
+    let text = toml::to_string(table).map_err(|e| ReportError::Scene(e.to_string()))?;
+    sim_for(&text, &scene_dir(), seconds)
 }
 
 /// The first move keyframe's speed (m/s) and duration (s) of a scene.
