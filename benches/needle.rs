@@ -8,7 +8,7 @@
 //!   the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed first.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces};
+use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces, ShapeMatchingParams};
 use needlesim::gpu::GpuBackend;
 use needlesim::needle::{NodeEditor, PunctureState, Simulation};
 use needlesim::{CpuBackend, Material, Scene, Threading, Tissue};
@@ -84,7 +84,9 @@ fn inserted() -> Scene {
     Scene::builder()
         .neighbours(16)
         .box_with_nodes([0.0; 3], [0.1; 3], 10932)
-        .material(Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Cluster))
+        .material(Material::LocalShapeMatching(
+            ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
+        ))
         .dt(2e-4)
         .damping(4.0)
         .fixed(NodeSet::above(Axis::X, 0.0995))

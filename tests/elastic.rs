@@ -5,7 +5,10 @@ mod common;
 
 use common::*;
 use needlesim::core::models::{mls, point_based};
-use needlesim::core::scene::{lame, Axis, NodeSet, NodeVolumes, SpringShare};
+use needlesim::core::scene::{
+    lame, Axis, DebunneParams, MassSpringParams, NodeSet, NodeVolumes, PointBasedParams,
+    SpringShare,
+};
 use needlesim::{Backend, Material, NodeField, Scene, Threading, Tissue};
 
 const E: f64 = 10e3;
@@ -29,7 +32,7 @@ fn elastic_models() -> [(&'static str, Material); 3] {
         ("deb", Material::debunne(E, NU)),
         (
             "deb-corotated",
-            Material::debunne(E, NU).with_corotated(true),
+            Material::DebunneMeshfree(DebunneParams::new(E, NU).with_corotated(true)),
         ),
         ("pba", Material::point_based(E, NU)),
     ]
@@ -256,7 +259,7 @@ fn linear_debunne_is_strained_by_a_finite_rotation() {
 #[test]
 fn volume_term_resists_compression() {
     let outward = |kv: f64| {
-        let material = Material::point_based(E, NU).with_volume_stiffness(kv);
+        let material = Material::PointBased(PointBasedParams::new(E, NU).with_volume_stiffness(kv));
         let scene = cube_scene(material, 639, 0.0, [0.9, 0.9, 0.9]);
         let mut b = backend(&scene, Threading::Single);
         b.compute_forces();
@@ -350,7 +353,8 @@ fn node_volume_rules() {
         ("uniform", NodeVolumes::Uniform),
         ("density", NodeVolumes::Density),
     ] {
-        let material = Material::point_based(1e4, 0.3).with_node_volumes(volumes);
+        let material =
+            Material::PointBased(PointBasedParams::new(1e4, 0.3).with_node_volumes(volumes));
         let t = Tissue::from_scene(&cube_scene(material, 639, 0.0, [1.0; 3])).unwrap();
         let n = t.n_mesh;
         let v = t.shape.node_volumes(n).unwrap();
@@ -390,7 +394,7 @@ fn node_volume_rules() {
 fn mass_spring_block_is_as_stiff_as_the_bulk_lattice() {
     let eps = 1e-3;
     let ratio = |side: usize, share: SpringShare| -> f64 {
-        let material = Material::mass_spring(1.0).with_spring_share(share);
+        let material = Material::MassSpring(MassSpringParams::new(1.0).with_spring_share(share));
         let scene = cube_scene(material, side * side * side, 0.0, [1.0 + eps, 1.0, 1.0]);
         let rest = rest_positions(&scene);
         let t = Tissue::from_scene(&scene).unwrap();

@@ -6,7 +6,9 @@ mod common;
 
 use common::*;
 use needlesim::core::models::ShapeArray;
-use needlesim::core::scene::{Axis, Components, FixedSelection, LoadSpec, NodeSet, Prescribed};
+use needlesim::core::scene::{
+    Axis, Components, DebunneParams, FixedSelection, LoadSpec, NodeSet, Prescribed,
+};
 use needlesim::gpu::{GpuBackend, GpuError};
 use needlesim::{Backend, Material, NodeField, Scene, Threading, Tissue};
 
@@ -314,7 +316,7 @@ fn a_checkpoint_round_trips_through_the_gpu() {
         std::path::Path::new("scenes"),
     )
     .unwrap();
-    scene.material = Material::debunne(1e4, 0.3).with_corotated(true);
+    scene.material = Material::DebunneMeshfree(DebunneParams::new(1e4, 0.3).with_corotated(true));
     scene.validate().unwrap();
     let prep = Simulation::prepare(&scene).unwrap();
     let Some(b) = gpu(&prep.tissue) else { return };

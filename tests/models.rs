@@ -4,6 +4,7 @@
 
 mod common;
 use common::*;
+use needlesim::core::scene::DebunneParams;
 use needlesim::{Backend, Material, NodeField, Threading};
 
 /// Largest force at rest relative to the largest force of the same cube stretched by 30%.
@@ -272,9 +273,11 @@ fn q1_diagonal(e: f64, nu: f64, h: f64) -> f64 {
 fn a_single_node_stiffens_with_hourglass_control_towards_the_fem_diagonal() {
     let (e, nu) = (1e4, 0.45);
     let stiffness = |alpha: f64| {
-        let m = Material::debunne(e, nu)
-            .with_corotated(true)
-            .with_hourglass(alpha);
+        let m = Material::DebunneMeshfree(
+            DebunneParams::new(e, nu)
+                .with_corotated(true)
+                .with_hourglass(alpha),
+        );
         let scene = cube_scene(m, 343, 0.0, [1.0; 3]);
         let rest = rest_positions(&scene);
         let c = (0..rest.len())

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use needlesim::core::scene::NodeVolumes;
+use needlesim::core::scene::{NodeVolumes, PointBasedParams};
 use needlesim::needle::NodeEditor;
 use needlesim::{Backend, CpuBackend, Material, NodeField, Threading, Tissue};
 
@@ -54,7 +54,7 @@ fn inside(rng: &mut Lcg) -> [f32; 3] {
 /// for every node whose neighbour row changes (the default cell volumes do not).
 const PBA_DENSITY: (&str, Material) = (
     "pba-density",
-    Material::point_based(1e4, 0.3).with_node_volumes(NodeVolumes::Density),
+    Material::PointBased(PointBasedParams::new(1e4, 0.3).with_node_volumes(NodeVolumes::Density)),
 );
 
 #[test]

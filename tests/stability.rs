@@ -6,7 +6,7 @@
 mod common;
 use common::*;
 use needlesim::core::backend::check_bounded;
-use needlesim::core::scene::{ShapeMatchingForces, TimeStep};
+use needlesim::core::scene::{DebunneParams, ShapeMatchingForces, ShapeMatchingParams, TimeStep};
 use needlesim::core::stability::max_eigenvalue;
 use needlesim::{Backend, CpuBackend, Material, Scene, Threading, Tissue};
 
@@ -77,18 +77,22 @@ fn auto_dt_is_stable_on_stiff_scenes() {
         // damping at any step (20/s at the default stiffness, times sqrt(1000)).
         (
             "lshm-node",
-            Material::shape_matching(2e4).with_forces(ShapeMatchingForces::Node),
+            Material::LocalShapeMatching(
+                ShapeMatchingParams::new(2e4).with_forces(ShapeMatchingForces::Node),
+            ),
             630.0,
         ),
         (
             "lshm-cluster",
-            Material::shape_matching(2e4).with_forces(ShapeMatchingForces::Cluster),
+            Material::LocalShapeMatching(
+                ShapeMatchingParams::new(2e4).with_forces(ShapeMatchingForces::Cluster),
+            ),
             0.0,
         ),
         ("deb", Material::debunne(1e7, 0.3), 0.0),
         (
             "deb-corotated",
-            Material::debunne(1e7, 0.3).with_corotated(true),
+            Material::DebunneMeshfree(DebunneParams::new(1e7, 0.3).with_corotated(true)),
             0.0,
         ),
         ("pba", Material::point_based(1e7, 0.3), 0.0),

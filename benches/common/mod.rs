@@ -1,23 +1,27 @@
 //! Shared by the benches: the model variants and the cube they step.
 
-use needlesim::core::scene::ShapeMatchingForces;
+use needlesim::core::scene::{
+    DebunneParams, MassSpringParams, ShapeMatchingForces, ShapeMatchingParams,
+};
 use needlesim::{Material, Scene};
 
 /// (label, material) of every model variant benched.
 pub const MODELS: [(&str, Material); 6] = [
     (
         "msm",
-        Material::mass_spring(100.0).with_spring_damping(0.01),
+        Material::MassSpring(MassSpringParams::new(100.0).with_spring_damping(0.01)),
     ),
     ("lshm", Material::shape_matching(20.0)),
     (
         "lshm-cluster",
-        Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Cluster),
+        Material::LocalShapeMatching(
+            ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
+        ),
     ),
     ("deb", Material::debunne(1e4, 0.45)),
     (
         "deb-corotated",
-        Material::debunne(1e4, 0.45).with_corotated(true),
+        Material::DebunneMeshfree(DebunneParams::new(1e4, 0.45).with_corotated(true)),
     ),
     ("pba", Material::point_based(1e4, 0.45)),
 ];

@@ -1,24 +1,33 @@
 #![allow(dead_code)]
 use needlesim::core::geometry;
-use needlesim::core::scene::ShapeMatchingForces;
+use needlesim::core::scene::{
+    DebunneParams, MassSpringParams, ShapeMatchingForces, ShapeMatchingParams,
+};
 use needlesim::gpu::{GpuBackend, GpuError};
 use needlesim::needle::{NeedleSample, Simulation};
 use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, Threading, Tissue};
 
 /// The rotation-invariant force models under test: (label, material).
 pub const MODELS: [(&str, Material); 5] = [
-    ("msm", Material::mass_spring(100.0).with_spring_damping(0.0)),
+    (
+        "msm",
+        Material::MassSpring(MassSpringParams::new(100.0).with_spring_damping(0.0)),
+    ),
     (
         "lshm-node",
-        Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Node),
+        Material::LocalShapeMatching(
+            ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Node),
+        ),
     ),
     (
         "lshm-cluster",
-        Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Cluster),
+        Material::LocalShapeMatching(
+            ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
+        ),
     ),
     (
         "deb-corotated",
-        Material::debunne(1e4, 0.3).with_corotated(true),
+        Material::DebunneMeshfree(DebunneParams::new(1e4, 0.3).with_corotated(true)),
     ),
     ("pba", Material::point_based(1e4, 0.3)),
 ];

@@ -30,6 +30,7 @@ pub mod integrator;
 pub mod math;
 pub mod models;
 pub mod neighbours;
+pub mod parallel;
 pub mod regions;
 pub mod scene;
 pub mod scene_builder;
@@ -37,6 +38,7 @@ pub mod stability;
 pub mod state;
 pub mod stepper;
 pub mod tissue;
+mod validate;
 
 /// The vector math crate the kernels use (f32 `Vec3`, `Mat3`, `Quat`; f64 `DVec3`),
 /// re-exported so that callers of the model functions use the same version.

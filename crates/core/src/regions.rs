@@ -176,7 +176,7 @@ pub fn validate(scene: &Scene) -> Result<(), SceneError> {
             }
         }
         let m = region_material(scene, r)?;
-        crate::scene::validate_material(&m, &format!("{key}.material"))?;
+        m.validate(&format!("{key}.material"))?;
     }
     Ok(())
 }
@@ -192,12 +192,7 @@ pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, Sce
         ));
     };
     let base = scene.material;
-    let model = match base {
-        Material::MassSpring(_) => "mass_spring",
-        Material::LocalShapeMatching(_) => "local_shape_matching",
-        Material::DebunneMeshfree(_) => "debunne_meshfree",
-        Material::PointBased(_) => "point_based",
-    };
+    let model = base.tag();
     let mut t = table.clone();
     match t.remove("model") {
         None => {}
@@ -213,7 +208,7 @@ pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, Sce
         }
     }
     // The region's keys over every key of `[material]`.
-    let mut full = base_table(&base);
+    let mut full = base.to_table();
     for (k, v) in t.iter() {
         full.insert(k.clone(), v.clone());
     }
@@ -233,95 +228,11 @@ pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, Sce
             ),
         )
     };
-    let differs = match (&base, &m) {
-        (Material::MassSpring(b), Material::MassSpring(r)) => {
-            (b.spring_share != r.spring_share).then_some("spring_share")
-        }
-        (Material::LocalShapeMatching(b), Material::LocalShapeMatching(r)) => {
-            if b.forces != r.forces {
-                Some("forces")
-            } else {
-                (b.rotation_iterations != r.rotation_iterations).then_some("rotation_iterations")
-            }
-        }
-        (Material::DebunneMeshfree(b), Material::DebunneMeshfree(r)) => {
-            if b.corotated != r.corotated {
-                Some("corotated")
-            } else if b.rotation_iterations != r.rotation_iterations {
-                Some("rotation_iterations")
-            } else {
-                (b.node_volumes != r.node_volumes).then_some("node_volumes")
-            }
-        }
-        (Material::PointBased(b), Material::PointBased(r)) => {
-            (b.node_volumes != r.node_volumes).then_some("node_volumes")
-        }
-        _ => Some("model"),
-    };
+    let differs = base.structural_difference(&m);
     match differs {
         Some(k) => Err(structural(k)),
         None => Ok(m),
     }
-}
-
-/// Every key of a material as its TOML table (without `model`).
-fn base_table(m: &Material) -> toml::Table {
-    use crate::scene::{NodeVolumes, ShapeMatchingForces, SpringShare};
-    let f = toml::Value::Float;
-    let s = |v: &str| toml::Value::String(v.into());
-    let volumes = |v: NodeVolumes| {
-        s(match v {
-            NodeVolumes::Cell => "cell",
-            NodeVolumes::Density => "density",
-            NodeVolumes::Uniform => "uniform",
-        })
-    };
-    let pairs: Vec<(&str, toml::Value)> = match *m {
-        Material::MassSpring(p) => vec![
-            ("stiffness", f(p.stiffness)),
-            ("spring_damping", f(p.spring_damping)),
-            (
-                "spring_share",
-                s(match p.spring_share {
-                    SpringShare::Cell => "cell",
-                    SpringShare::Equal => "equal",
-                }),
-            ),
-        ],
-        Material::LocalShapeMatching(p) => vec![
-            ("stiffness", f(p.stiffness)),
-            (
-                "rotation_iterations",
-                toml::Value::Integer(p.rotation_iterations as i64),
-            ),
-            (
-                "forces",
-                s(match p.forces {
-                    ShapeMatchingForces::Node => "node",
-                    ShapeMatchingForces::Cluster => "cluster",
-                }),
-            ),
-        ],
-        Material::DebunneMeshfree(p) => vec![
-            ("young_modulus", f(p.young_modulus)),
-            ("poisson_ratio", f(p.poisson_ratio)),
-            ("corotated", toml::Value::Boolean(p.corotated)),
-            (
-                "rotation_iterations",
-                toml::Value::Integer(p.rotation_iterations as i64),
-            ),
-            ("hourglass", f(p.hourglass)),
-            ("node_volumes", volumes(p.node_volumes)),
-        ],
-        Material::PointBased(p) => vec![
-            ("young_modulus", f(p.young_modulus)),
-            ("poisson_ratio", f(p.poisson_ratio)),
-            ("volume_stiffness", f(p.volume_stiffness)),
-            ("hourglass", f(p.hourglass)),
-            ("node_volumes", volumes(p.node_volumes)),
-        ],
-    };
-    pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect()
 }
 
 /// A region's shape, ready for inside tests.

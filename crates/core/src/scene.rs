@@ -27,6 +27,7 @@
 //! ```
 
 use crate::error::SceneError;
+use crate::validate::{finite, non_negative_finite, positive_finite};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -389,187 +390,12 @@ impl Default for WeightKernel {
     }
 }
 
-/// The tissue model and its parameters, chosen by the key `model`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Material {
-    /// `model = "mass_spring"`: weighted mass-spring model, one spring per neighbour pair.
-    MassSpring(MassSpringParams),
-    /// `model = "local_shape_matching"`: one cluster per node (paper section 3).
-    LocalShapeMatching(ShapeMatchingParams),
-    /// `model = "debunne_meshfree"`: linear elasticity, Navier's equation at every node
-    /// with point-set operators (Debunne et al. 1999).
-    DebunneMeshfree(DebunneParams),
-    /// `model = "point_based"`: point based animation (Mueller et al. 2004), Green strain
-    /// from a moving-least-squares displacement gradient.
-    PointBased(PointBasedParams),
-}
-
-/// Parameters of the Debunne meshfree model.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct DebunneParams {
-    /// Young's modulus E in Pa.
-    pub young_modulus: f64,
-    /// Poisson ratio nu, in (-1, 0.5).
-    pub poisson_ratio: f64,
-    /// Co-rotate the linear model with each node's shape matching rotation R_i:
-    /// `f_i = R_i sum_j K_ij (R_i^T (x_j - x_i) - (x0_j - x0_i))`. Off by default (the
-    /// paper's plain linear model, which does not survive large rotations).
-    #[serde(default)]
-    pub corotated: bool,
-    /// Quaternion iterations per step of the rotation extraction when `corotated`.
-    #[serde(default = "default_rotation_iterations")]
-    pub rotation_iterations: u32,
-    /// Hourglass control alpha (dimensionless): stiffness of the non-affine part of a
-    /// neighbourhood's motion, in units of `mu V_i / sum_j w_ij |x_ij|^2`.
-    #[serde(default = "default_hourglass")]
-    pub hourglass: f64,
-    /// The volume `V_i` that weights each node's strain energy: `cell` (default),
-    /// `density` or `uniform` (see [`NodeVolumes`]).
-    #[serde(default)]
-    pub node_volumes: NodeVolumes,
-}
-
-/// Hourglass control on by default: without it zig-zag fields cost no energy.
-pub(crate) const fn default_hourglass() -> f64 {
-    0.1
-}
-
-/// Parameters of point based animation.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct PointBasedParams {
-    /// Young's modulus E in Pa.
-    pub young_modulus: f64,
-    /// Poisson ratio nu, in (-1, 0.5).
-    pub poisson_ratio: f64,
-    /// Stiffness k_v in Pa of the volume-conserving energy `k_v/2 V (det F - 1)^2`
-    /// (Mueller et al. 2004, section 4.3); 0 (the default) switches it off.
-    #[serde(default)]
-    pub volume_stiffness: f64,
-    /// Hourglass control alpha, as for the Debunne model. Default 0.1: it removes the
-    /// zig-zag modes without changing the patch test. 0 is the original method, whose
-    /// zig-zag modes cost no energy: a 343-node cube twisted 90 degrees and released then
-    /// kept 2.2% of its twist (the report's extreme cases, K = 18; 0.01% with 0.1).
-    #[serde(default = "default_hourglass")]
-    pub hourglass: f64,
-    /// The volume `V_i` that weights each node's strain energy: `cell` (default),
-    /// `density` (the original method) or `uniform` (see [`NodeVolumes`]).
-    #[serde(default)]
-    pub node_volumes: NodeVolumes,
-}
-
-/// The node volumes `V_i` of the continuum models: the weights of their nodal
-/// integration `U = sum_i V_i W(F_i)`. All three add up to the volume enclosed by the
-/// surface; they differ in how it is shared.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum NodeVolumes {
-    /// The node's cell: the part of the body nearer to it than to any other node (exact on
-    /// box lattices: `h^3`, halved on each face; sub-sampled for OBJ geometry). Nodes on
-    /// the surface get less, which makes bending stiffness converge (the report's
-    /// cantilever).
-    #[default]
-    Cell,
-    /// The density estimate of Mueller et al. 2004, section 4.2: `V_i = m_i / rho_i`,
-    /// `rho_i = sum_j m_j W_ij`. Surface nodes have fewer neighbours, a lower density and
-    /// so a larger volume: too stiff in bending.
-    Density,
-    /// Every node `V / n`: also too stiff in bending, by `(n+1)/(n-1)` with `n` nodes
-    /// through the thickness.
-    Uniform,
-}
-
-/// Lame parameters `(lambda, mu)` from Young's modulus and the Poisson ratio.
-pub fn lame(young_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
-    let (e, nu) = (young_modulus, poisson_ratio);
-    (
-        e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
-        e / (2.0 * (1.0 + nu)),
-    )
-}
-
-/// Parameters of the weighted mass-spring model.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct MassSpringParams {
-    /// Spring stiffness k in N/m (scaled by the pair weight).
-    pub stiffness: f64,
-    /// Spring damping along the spring in N s/m (scaled by the pair weight).
-    #[serde(default)]
-    pub spring_damping: f64,
-    /// How much of the body each spring stands for (`spring_share`, default `"cell"`).
-    #[serde(default)]
-    pub spring_share: SpringShare,
-}
-
-/// The share of the body a mass-spring spring stands for, a factor on its weight.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum SpringShare {
-    /// The larger cell volume of its two nodes over an interior node's cell (`spacing^3`):
-    /// 1 inside, 1/2 for a spring lying in a face of a box lattice, 1/4 along an edge: the
-    /// share of the lattice cells around the spring that lie inside the body. Under a
-    /// uniform strain a cube of 5^3 nodes is then 4.8% stiffer than the unbounded lattice,
-    /// 9^3 nodes 0.9% (K = 18; `"equal"`: 21.5% at 9^3), and the calibration `k = C E h`
-    /// barely drifts with resolution (`needlesim_core::calibration`). The price: edge and
-    /// corner springs are a quarter as strong, and a cube squashed to 10% of its height
-    /// and released stays 4.0% off its rest shape with K = 18 (the report's extreme
-    /// cases; with K = 16 it was 19%, and 3.6% with `"equal"`).
-    #[default]
-    Cell,
-    /// Every spring counts fully (the paper's weighted mass-spring): springs in the
-    /// surface make a block stiffer than the unbounded lattice under a uniform strain, by
-    /// 67% at 5^3 nodes and 8% at 25^3.
-    Equal,
-}
-
-/// Parameters of local shape matching.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct ShapeMatchingParams {
-    /// Restoring stiffness k_s in N/m of `f = k_s (g - x)`.
-    pub stiffness: f64,
-    /// Most quaternion iterations per step of the rotation extraction, warm started from
-    /// the previous step (default 2).
-    #[serde(default = "default_rotation_iterations")]
-    pub rotation_iterations: u32,
-    /// Which nodes a cluster pulls: `node` (the paper) or `cluster` (conservative).
-    #[serde(default)]
-    pub forces: ShapeMatchingForces,
-}
-
-/// Which nodes a shape matching cluster acts on.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum ShapeMatchingForces {
-    /// Only its own node, `f_i = k_s (g_i - x_i)` (paper equation 1). Not conservative:
-    /// needs velocity damping to stay stable at high stiffness.
-    #[default]
-    Node,
-    /// All its members towards their goals: the gradient of the shape matching energy,
-    /// conservative and momentum-conserving.
-    Cluster,
-}
-
-/// Warm started from the previous step, the rotation moves little per step; two
-/// iterations keep it converged while halving the cost of eight (measured on the
-/// 10932-node bench).
-pub(crate) const fn default_rotation_iterations() -> u32 {
-    2
-}
-
-impl Material {
-    /// The model's short name as used in file names and tables.
-    pub fn short_name(&self) -> &'static str {
-        match self {
-            Material::MassSpring(_) => "msm",
-            Material::LocalShapeMatching(_) => "lshm",
-            Material::DebunneMeshfree(_) => "deb",
-            Material::PointBased(_) => "pba",
-        }
-    }
-}
+pub use crate::models::debunne_meshfree::DebunneParams;
+pub use crate::models::local_shape_matching::{ShapeMatchingForces, ShapeMatchingParams};
+pub use crate::models::mass_spring::{MassSpringParams, SpringShare};
+pub use crate::models::mls::{lame, NodeVolumes};
+pub use crate::models::point_based::PointBasedParams;
+pub use crate::models::Material;
 
 /// Time stepping parameters.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
@@ -1311,13 +1137,7 @@ impl<'de> Deserialize<'de> for MaterialTable {
 }
 
 fn de_material<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Material, D::Error> {
-    de_tagged(d, "material", "model", |name, v| match name {
-        "mass_spring" => Some(v.try_into().map(Material::MassSpring)),
-        "local_shape_matching" => Some(v.try_into().map(Material::LocalShapeMatching)),
-        "debunne_meshfree" => Some(v.try_into().map(Material::DebunneMeshfree)),
-        "point_based" => Some(v.try_into().map(Material::PointBased)),
-        _ => None,
-    })
+    de_tagged(d, "material", "model", Material::from_tagged)
 }
 
 fn de_geometry<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Geometry, D::Error> {
@@ -1505,7 +1325,7 @@ impl Scene {
                 }
             }
         }
-        validate_material(&self.material, "material")?;
+        self.material.validate("material")?;
         let p = &self.physics;
         if let TimeStep::Seconds(dt) = p.dt {
             positive_finite("physics.dt", dt)?;
@@ -1570,121 +1390,6 @@ impl Scene {
                 "must be at least 1",
             ));
         }
-        Ok(())
-    }
-}
-
-/// Checks the parameters of a material; errors name `{key}.<parameter>`.
-pub(crate) fn validate_material(material: &Material, key: &str) -> Result<(), SceneError> {
-    match *material {
-        Material::MassSpring(MassSpringParams {
-            stiffness,
-            spring_damping,
-            ..
-        }) => {
-            positive_finite(&format!("{key}.stiffness"), stiffness)?;
-            non_negative_finite(&format!("{key}.spring_damping"), spring_damping)?;
-        }
-        Material::LocalShapeMatching(ShapeMatchingParams {
-            stiffness,
-            rotation_iterations,
-            ..
-        }) => {
-            positive_finite(&format!("{key}.stiffness"), stiffness)?;
-            rotation_iterations_in_range(key, rotation_iterations)?;
-        }
-        Material::DebunneMeshfree(DebunneParams {
-            young_modulus,
-            poisson_ratio,
-            rotation_iterations,
-            hourglass,
-            ..
-        }) => {
-            elastic_moduli(key, young_modulus, poisson_ratio)?;
-            rotation_iterations_in_range(key, rotation_iterations)?;
-            non_negative_finite(&format!("{key}.hourglass"), hourglass)?;
-        }
-        Material::PointBased(PointBasedParams {
-            young_modulus,
-            poisson_ratio,
-            volume_stiffness,
-            hourglass,
-            ..
-        }) => {
-            elastic_moduli(key, young_modulus, poisson_ratio)?;
-            non_negative_finite(&format!("{key}.hourglass"), hourglass)?;
-            non_negative_finite(&format!("{key}.volume_stiffness"), volume_stiffness)?;
-        }
-    }
-    Ok(())
-}
-
-fn rotation_iterations_in_range(key: &str, n: u32) -> Result<(), SceneError> {
-    if n == 0 || n > 100 {
-        return Err(SceneError::invalid(
-            format!("{key}.rotation_iterations"),
-            format!("must be between 1 and 100, got {n}"),
-        ));
-    }
-    Ok(())
-}
-
-fn elastic_moduli(key: &str, young_modulus: f64, poisson_ratio: f64) -> Result<(), SceneError> {
-    positive_finite(&format!("{key}.young_modulus"), young_modulus)?;
-    if !(poisson_ratio.is_finite() && poisson_ratio > -1.0 && poisson_ratio < 0.5) {
-        return Err(SceneError::invalid(
-            format!("{key}.poisson_ratio"),
-            format!(
-                "must lie strictly between -1 and 0.5 (0.5 is incompressible, which an \
-                 explicit model cannot step), got {poisson_ratio}"
-            ),
-        ));
-    }
-    Ok(())
-}
-
-/// Whether `v` survives the f32 conversion every kernel input goes through: finite in f32,
-/// and not flushed to zero or a subnormal (only 0 itself is 0).
-fn fits_f32(v: f64) -> bool {
-    let f = v as f32;
-    f.is_finite() && (v == 0.0 || f.is_normal())
-}
-
-/// The f32 range a parameter must lie in, for error messages.
-const F32_RANGE: &str = "its magnitude must lie between 1.2e-38 and 3.4e38 (it is used in f32)";
-
-fn finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if !v.is_finite() {
-        Err(SceneError::invalid(key, format!("must be finite, got {v}")))
-    } else if !fits_f32(v) {
-        Err(SceneError::invalid(key, format!("{v:e}: {F32_RANGE}")))
-    } else {
-        Ok(())
-    }
-}
-
-fn positive_finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if !(v.is_finite() && v > 0.0) {
-        Err(SceneError::invalid(
-            key,
-            format!("must be a finite number > 0, got {v}"),
-        ))
-    } else if !fits_f32(v) {
-        Err(SceneError::invalid(key, format!("{v:e}: {F32_RANGE}")))
-    } else {
-        Ok(())
-    }
-}
-
-fn non_negative_finite(key: &str, v: f64) -> Result<(), SceneError> {
-    if !(v.is_finite() && v >= 0.0) {
-        Err(SceneError::invalid(
-            key,
-            format!("must be a finite number >= 0, got {v}"),
-        ))
-    } else if !fits_f32(v) {
-        Err(SceneError::invalid(key, format!("{v:e}: {F32_RANGE}")))
-    } else {
         Ok(())
     }
 }

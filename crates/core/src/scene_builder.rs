@@ -42,11 +42,10 @@
 
 use crate::error::SceneError;
 use crate::scene::{
-    default_density, default_hourglass, default_rotation_iterations, Axis, AxisRotation,
-    BackendChoice, BoxGeometry, Components, DebunneParams, FixedSelection, Geometry, Initial,
-    LoadSpec, MassSpringParams, Material, Motion, NodeMasses, NodeSet, NodeVolumes, ObjGeometry,
-    Physics, PointBasedParams, Prescribed, RunSettings, Scene, ShapeMatchingForces,
-    ShapeMatchingParams, SpringShare, SurfaceLoad, SurfaceNodes, TimeStep, Tissue, WeightKernel,
+    default_density, Axis, AxisRotation, BackendChoice, BoxGeometry, Components, DebunneParams,
+    FixedSelection, Geometry, Initial, LoadSpec, MassSpringParams, Material, Motion, NodeMasses,
+    NodeSet, ObjGeometry, Physics, PointBasedParams, Prescribed, RunSettings, Scene,
+    ShapeMatchingParams, SurfaceLoad, SurfaceNodes, TimeStep, Tissue, WeightKernel,
     DEFAULT_NEIGHBOURS,
 };
 use std::path::PathBuf;
@@ -586,161 +585,34 @@ impl LoadSpec {
 
 impl Material {
     /// `model = "mass_spring"` with spring `stiffness` in N/m, the other keys at their
-    /// defaults (no spring damping, `spring_share = "cell"`).
+    /// defaults ([`MassSpringParams::new`]).
     pub const fn mass_spring(stiffness: f64) -> Material {
-        Material::MassSpring(MassSpringParams {
-            stiffness,
-            spring_damping: 0.0,
-            spring_share: SpringShare::Cell,
-        })
+        Material::MassSpring(MassSpringParams::new(stiffness))
     }
 
     /// `model = "local_shape_matching"` with restoring `stiffness` in N/m, the other keys
-    /// at their defaults (`forces = "node"`, 2 rotation iterations).
+    /// at their defaults ([`ShapeMatchingParams::new`]).
     pub const fn shape_matching(stiffness: f64) -> Material {
-        Material::LocalShapeMatching(ShapeMatchingParams {
-            stiffness,
-            rotation_iterations: default_rotation_iterations(),
-            forces: ShapeMatchingForces::Node,
-        })
+        Material::LocalShapeMatching(ShapeMatchingParams::new(stiffness))
     }
 
     /// `model = "debunne_meshfree"` with Young's modulus in Pa and the Poisson ratio, the
-    /// other keys at their defaults (not co-rotated, hourglass 0.1, cell volumes).
+    /// other keys at their defaults ([`DebunneParams::new`]).
     pub const fn debunne(young_modulus: f64, poisson_ratio: f64) -> Material {
-        Material::DebunneMeshfree(DebunneParams {
-            young_modulus,
-            poisson_ratio,
-            corotated: false,
-            rotation_iterations: default_rotation_iterations(),
-            hourglass: default_hourglass(),
-            node_volumes: NodeVolumes::Cell,
-        })
+        Material::DebunneMeshfree(DebunneParams::new(young_modulus, poisson_ratio))
     }
 
     /// `model = "point_based"` with Young's modulus in Pa and the Poisson ratio, the other
-    /// keys at their defaults (no volume term, hourglass 0.1, cell volumes).
+    /// keys at their defaults ([`PointBasedParams::new`]).
     pub const fn point_based(young_modulus: f64, poisson_ratio: f64) -> Material {
-        Material::PointBased(PointBasedParams {
-            young_modulus,
-            poisson_ratio,
-            volume_stiffness: 0.0,
-            hourglass: default_hourglass(),
-            node_volumes: NodeVolumes::Cell,
-        })
-    }
-
-    /// `spring_damping` in N s/m.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `mass_spring`.
-    pub const fn with_spring_damping(mut self, spring_damping: f64) -> Self {
-        match &mut self {
-            Material::MassSpring(p) => p.spring_damping = spring_damping,
-            _ => panic!("`spring_damping` is a parameter of mass_spring only"),
-        }
-        self
-    }
-
-    /// `spring_share`.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `mass_spring`.
-    pub const fn with_spring_share(mut self, spring_share: SpringShare) -> Self {
-        match &mut self {
-            Material::MassSpring(p) => p.spring_share = spring_share,
-            _ => panic!("`spring_share` is a parameter of mass_spring only"),
-        }
-        self
-    }
-
-    /// `forces`: which nodes a shape matching cluster pulls.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `local_shape_matching`.
-    pub const fn with_forces(mut self, forces: ShapeMatchingForces) -> Self {
-        match &mut self {
-            Material::LocalShapeMatching(p) => p.forces = forces,
-            _ => panic!("`forces` is a parameter of local_shape_matching only"),
-        }
-        self
-    }
-
-    /// `rotation_iterations`.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `local_shape_matching` or `debunne_meshfree`.
-    pub const fn with_rotation_iterations(mut self, iterations: u32) -> Self {
-        match &mut self {
-            Material::LocalShapeMatching(p) => p.rotation_iterations = iterations,
-            Material::DebunneMeshfree(p) => p.rotation_iterations = iterations,
-            _ => panic!("`rotation_iterations` is a parameter of local_shape_matching and debunne_meshfree only"),
-        }
-        self
-    }
-
-    /// `corotated`: co-rotate the linear model.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `debunne_meshfree`.
-    pub const fn with_corotated(mut self, corotated: bool) -> Self {
-        match &mut self {
-            Material::DebunneMeshfree(p) => p.corotated = corotated,
-            _ => panic!("`corotated` is a parameter of debunne_meshfree only"),
-        }
-        self
-    }
-
-    /// `hourglass`: the hourglass control alpha.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `debunne_meshfree` or `point_based`.
-    pub const fn with_hourglass(mut self, hourglass: f64) -> Self {
-        match &mut self {
-            Material::DebunneMeshfree(p) => p.hourglass = hourglass,
-            Material::PointBased(p) => p.hourglass = hourglass,
-            _ => panic!("`hourglass` is a parameter of debunne_meshfree and point_based only"),
-        }
-        self
-    }
-
-    /// `node_volumes`: the volumes weighting each node's strain energy.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `debunne_meshfree` or `point_based`.
-    pub const fn with_node_volumes(mut self, node_volumes: NodeVolumes) -> Self {
-        match &mut self {
-            Material::DebunneMeshfree(p) => p.node_volumes = node_volumes,
-            Material::PointBased(p) => p.node_volumes = node_volumes,
-            _ => panic!("`node_volumes` is a parameter of debunne_meshfree and point_based only"),
-        }
-        self
-    }
-
-    /// `volume_stiffness` in Pa of point based animation's volume term.
-    ///
-    /// # Panics
-    ///
-    /// Unless the model is `point_based`.
-    pub const fn with_volume_stiffness(mut self, volume_stiffness: f64) -> Self {
-        match &mut self {
-            Material::PointBased(p) => p.volume_stiffness = volume_stiffness,
-            _ => panic!("`volume_stiffness` is a parameter of point_based only"),
-        }
-        self
+        Material::PointBased(PointBasedParams::new(young_modulus, poisson_ratio))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::{NodeVolumes, ShapeMatchingForces, SpringShare};
     use std::path::Path;
 
     fn parse(text: &str) -> Scene {
@@ -789,31 +661,31 @@ mod tests {
     fn material_setters_match_their_keys() {
         for (material, table) in [
             (
-                Material::mass_spring(1e3)
+                Material::MassSpring(MassSpringParams::new(1e3)
                     .with_spring_damping(0.01)
-                    .with_spring_share(SpringShare::Equal),
+                    .with_spring_share(SpringShare::Equal)),
                 "model = \"mass_spring\"\nstiffness = 1e3\nspring_damping = 0.01\nspring_share = \"equal\"",
             ),
             (
-                Material::shape_matching(2e4)
+                Material::LocalShapeMatching(ShapeMatchingParams::new(2e4)
                     .with_forces(ShapeMatchingForces::Cluster)
-                    .with_rotation_iterations(5),
+                    .with_rotation_iterations(5)),
                 "model = \"local_shape_matching\"\nstiffness = 2e4\nforces = \"cluster\"\nrotation_iterations = 5",
             ),
             (
-                Material::debunne(1e7, 0.3)
+                Material::DebunneMeshfree(DebunneParams::new(1e7, 0.3)
                     .with_corotated(true)
                     .with_rotation_iterations(3)
                     .with_hourglass(0.05)
-                    .with_node_volumes(NodeVolumes::Uniform),
+                    .with_node_volumes(NodeVolumes::Uniform)),
                 "model = \"debunne_meshfree\"\nyoung_modulus = 1e7\npoisson_ratio = 0.3\ncorotated = true\n\
                  rotation_iterations = 3\nhourglass = 0.05\nnode_volumes = \"uniform\"",
             ),
             (
-                Material::point_based(1e4, 0.3)
+                Material::PointBased(PointBasedParams::new(1e4, 0.3)
                     .with_volume_stiffness(1e4)
                     .with_hourglass(0.0)
-                    .with_node_volumes(NodeVolumes::Density),
+                    .with_node_volumes(NodeVolumes::Density)),
                 "model = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nvolume_stiffness = 1e4\n\
                  hourglass = 0.0\nnode_volumes = \"density\"",
             ),
@@ -1008,7 +880,7 @@ mod tests {
                 "material.poisson_ratio",
             ),
             (
-                cube().material(Material::shape_matching(20.0).with_rotation_iterations(0)),
+                cube().material(Material::LocalShapeMatching(ShapeMatchingParams::new(20.0).with_rotation_iterations(0))),
                 format!(
                     "{CUBE}[material]\nmodel = \"local_shape_matching\"\nstiffness = 20.0\nrotation_iterations = 0\n"
                 ),
@@ -1151,19 +1023,14 @@ mod tests {
         );
     }
 
-    /// A setter for a parameter the model does not have is a programming error.
-    #[test]
-    #[should_panic(expected = "`corotated` is a parameter of debunne_meshfree only")]
-    fn a_setter_of_another_model_panics() {
-        let _ = Material::point_based(1e4, 0.3).with_corotated(true);
-    }
-
     /// The constructors and setters are `const`: tables of materials can be constants.
     #[test]
     fn materials_can_be_constants() {
         const MODELS: [Material; 2] = [
-            Material::shape_matching(20.0).with_forces(ShapeMatchingForces::Cluster),
-            Material::debunne(1e4, 0.3).with_corotated(true),
+            Material::LocalShapeMatching(
+                ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
+            ),
+            Material::DebunneMeshfree(DebunneParams::new(1e4, 0.3).with_corotated(true)),
         ];
         assert!(matches!(
             MODELS[1],

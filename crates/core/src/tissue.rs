@@ -9,7 +9,7 @@ use crate::math::Vec4;
 use crate::models::{material_row, ArrayInfo, ShapeInfo};
 use crate::neighbours::{Neighbours, MIN_LIVE_NEIGHBOURS};
 use crate::regions::Regions;
-use crate::scene::{MassSpringParams, Material, NodeMasses, Scene, SpringShare, TimeStep};
+use crate::scene::{Material, NodeMasses, Scene, TimeStep};
 use crate::state::NodeState;
 
 /// The key memory errors name for the spare node slots: they hold the needle's nodes
@@ -76,18 +76,9 @@ impl Tissue {
         }
         let capacity = n + extra;
         let mut neighbours = Neighbours::build(&cloud.positions, k, scene.tissue.weight, capacity);
-        if let Material::MassSpring(MassSpringParams {
-            spring_share: SpringShare::Cell,
-            ..
-        }) = scene.material
-        {
-            crate::models::mass_spring::apply_cell_shares(
-                &mut neighbours,
-                &cloud.node_volumes,
-                cloud.spacing,
-                n,
-            );
-        }
+        scene
+            .material
+            .prepare_neighbours(&mut neighbours, &cloud.node_volumes, cloud.spacing, n);
         check_live_neighbours(scene, &neighbours, &cloud.positions)?;
         let mut regions = crate::regions::classify(scene, &cloud.positions, cloud.spacing)?;
         let rho = scene.tissue.density;

@@ -3,84 +3,20 @@
 //! range reads and writes, neighbour rows), with a count of blocking readbacks and opt-in
 //! per-kernel timestamps ([`GpuBackend::enable_profiling`]).
 
+use crate::buffers::{storage, Buffers};
 use crate::context::{GpuContext, GpuError};
-use crate::kernels::{self, Kernel, WORKGROUP};
+use crate::kernels::{self, Pass, WORKGROUP};
+use crate::params::Params;
 use crate::profile::{map_read, KernelTime, Profiler};
-use bytemuck::{Pod, Zeroable};
 use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
-use needlesim_core::models::mls::ContinuumConstants;
-use needlesim_core::models::{ShapeArray, ShapeInfo};
-use needlesim_core::scene::{DebunneParams, MassSpringParams, Material, ShapeMatchingParams};
+use needlesim_core::models::ShapeArray;
 use needlesim_core::{Backend, NodeField, NodeSelection, SimError, Tissue, Vec4};
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use wgpu::util::DeviceExt;
 
-/// The uniform parameter block (`Params` in the top-level `shaders/common.wgsl`).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct Params {
-    n_active: u32,
-    k: u32,
-    iterations: u32,
-    groups_x: u32,
-    dt: f32,
-    damping_factor: f32,
-    stiffness: f32,
-    spring_damping: f32,
-    gravity: [f32; 4],
-    lambda: f32,
-    mu: f32,
-    volume_stiffness: f32,
-    hourglass: f32,
-    pad: [f32; 4],
-}
-
 /// Steps recorded per command buffer by [`Backend::step`].
 const STEPS_PER_SUBMIT: u64 = 200;
-
-/// The simulation's buffers, apart from the kernels that use them.
-#[derive(Debug)]
-pub struct Buffers {
-    params: wgpu::Buffer,
-    positions: wgpu::Buffer,
-    velocities: wgpu::Buffer,
-    forces: wgpu::Buffer,
-    nb_index: wgpu::Buffer,
-    nb_weight: wgpu::Buffer,
-    /// The model's arrays (those of `ShapeInfo::bytes`).
-    model: Vec<(ShapeArray, wgpu::Buffer)>,
-    readback: wgpu::Buffer,
-}
-
-impl Buffers {
-    /// The buffer of `array`. The force passes ask only for arrays their model's
-    /// `ShapeInfo` variant holds, which every buffer set is built from.
-    fn model(&self, array: ShapeArray) -> &wgpu::Buffer {
-        let found = self.model.iter().find(|(a, _)| *a == array);
-        &found.expect("the passes bind only their model's arrays").1
-    }
-
-    /// Bytes of every buffer, by name.
-    pub fn sizes(&self) -> Vec<(&'static str, u64)> {
-        let mut v = vec![
-            ("position", self.positions.size()),
-            ("velocity", self.velocities.size()),
-            ("force", self.forces.size()),
-            ("neighbour_index", self.nb_index.size()),
-            ("neighbour_weight", self.nb_weight.size()),
-        ];
-        v.extend(self.model.iter().map(|(a, b)| (a.name(), b.size())));
-        v
-    }
-}
-
-/// A kernel with its bind group.
-#[derive(Debug)]
-struct Pass {
-    kernel: Kernel,
-    bind: wgpu::BindGroup,
-}
 
 /// One piece of a readback: `bytes.len()` bytes from byte `offset` of a device buffer.
 type Piece<'a> = (&'a wgpu::Buffer, u64, &'a mut [u8]);
@@ -100,16 +36,6 @@ pub struct GpuBackend {
     readbacks: AtomicU64,
     /// Timestamps per kernel, once profiling was enabled.
     profiler: Option<Profiler>,
-}
-
-fn storage(device: &wgpu::Device, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: bytes,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_DST
-            | wgpu::BufferUsages::COPY_SRC,
-    })
 }
 
 /// Bytes of the largest buffer the tissue needs (for [`GpuContext::new`]).
@@ -170,35 +96,7 @@ impl GpuBackend {
             .into_iter()
             .map(|(array, bytes)| (array, b(array.name(), bytes)))
             .collect();
-        match tissue.material {
-            Material::MassSpring(MassSpringParams {
-                stiffness,
-                spring_damping,
-                ..
-            }) => {
-                params.stiffness = stiffness as f32;
-                params.spring_damping = spring_damping as f32;
-            }
-            Material::LocalShapeMatching(ShapeMatchingParams {
-                stiffness,
-                rotation_iterations,
-                ..
-            }) => {
-                params.stiffness = stiffness as f32;
-                params.iterations = rotation_iterations;
-            }
-            Material::DebunneMeshfree(DebunneParams {
-                rotation_iterations,
-                ..
-            }) => params.iterations = rotation_iterations,
-            Material::PointBased(_) => {}
-        }
-        if let Some(c) = ContinuumConstants::of(&tissue.material) {
-            params.lambda = c.lambda;
-            params.mu = c.mu;
-            params.volume_stiffness = c.volume_stiffness;
-            params.hourglass = c.hourglass;
-        }
+        crate::models::write_params(&tissue.material, &mut params);
         let buffers = Buffers {
             params: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("params"),
@@ -218,21 +116,8 @@ impl GpuBackend {
                 mapped_at_creation: false,
             }),
         };
-        let force_passes = force_passes(device, &tissue.shape, &buffers);
-        let integrate = {
-            let kernel = kernels::integrate(device);
-            let bu = &buffers;
-            let bind = kernel.bind(
-                device,
-                &[
-                    (0, &bu.params),
-                    (1, &bu.positions),
-                    (2, &bu.velocities),
-                    (3, &bu.forces),
-                ],
-            );
-            Pass { kernel, bind }
-        };
+        let force_passes = crate::models::force_passes(device, &tissue.shape, &buffers);
+        let integrate = kernels::INTEGRATE_NODE.pass(device, &buffers);
         let mut backend = GpuBackend {
             max_groups_x: device.limits().max_compute_workgroups_per_dimension,
             ctx,
@@ -535,166 +420,6 @@ impl GpuBackend {
     /// Waits until the device has finished all submitted work.
     pub fn wait(&self) {
         let _ = self.ctx.device.poll(wgpu::PollType::wait_indefinitely());
-    }
-}
-
-/// The force kernels of the tissue's model, in order, bound to `b`. With several
-/// materials (`node_material` present) the kernels that read material constants are their
-/// `_mixed` entry points, bound to the `node_material` buffer too (the cluster shape
-/// matching forces read the stiffness its frame pass put in the centres' w lane, and the
-/// co-rotated Debunne model takes its rotations in a pass of their own first, to stay
-/// within 8 storage buffers per kernel); with one material the kernels and bindings are
-/// those of the uniform parameters only.
-fn force_passes(device: &wgpu::Device, shape: &ShapeInfo, b: &Buffers) -> Vec<Pass> {
-    let pass = |kernel: Kernel, entries: &[(u32, &wgpu::Buffer)]| {
-        let bind = kernel.bind(device, entries);
-        Pass { kernel, bind }
-    };
-    let material = shape
-        .node_material()
-        .map(|_| (kernels::MATERIAL_BINDING, b.model(ShapeArray::NodeMaterial)));
-    let mixed = material.is_some();
-    // A kernel reading material constants: its entries, with the material's when mixed.
-    let pass_m = |kernel: Kernel, entries: &[(u32, &wgpu::Buffer)]| {
-        let mut entries = entries.to_vec();
-        entries.extend(material);
-        pass(kernel, &entries)
-    };
-    match shape {
-        ShapeInfo::MassSpring { .. } => vec![pass_m(
-            if mixed {
-                kernels::mass_spring_mixed(device)
-            } else {
-                kernels::mass_spring(device)
-            },
-            &[
-                (0, &b.params),
-                (1, &b.positions),
-                (2, &b.velocities),
-                (3, &b.nb_index),
-                (4, &b.nb_weight),
-                (5, b.model(ShapeArray::RestLength)),
-                (6, &b.forces),
-            ],
-        )],
-        ShapeInfo::LocalShapeMatching { cluster_centre, .. } => {
-            let frame_entries = |out| {
-                [
-                    (0, &b.params),
-                    (1, &b.positions),
-                    (2, b.model(ShapeArray::RestPosition)),
-                    (3, b.model(ShapeArray::ShapeVector)),
-                    (4, &b.nb_index),
-                    (5, &b.nb_weight),
-                    (6, b.model(ShapeArray::Rotation)),
-                    (7, out),
-                ]
-            };
-            match cluster_centre {
-                None => vec![pass_m(
-                    if mixed {
-                        kernels::lshm_node_force_mixed(device)
-                    } else {
-                        kernels::lshm_node_force(device)
-                    },
-                    &frame_entries(&b.forces),
-                )],
-                // Mixed: the frame pass puts each cluster's stiffness in its centre's w
-                // lane for the force pass.
-                Some(_) => vec![
-                    pass_m(
-                        if mixed {
-                            kernels::lshm_cluster_frame_mixed(device)
-                        } else {
-                            kernels::lshm_cluster_frame(device)
-                        },
-                        &frame_entries(b.model(ShapeArray::ClusterCentre)),
-                    ),
-                    pass(
-                        if mixed {
-                            kernels::lshm_cluster_force_mixed(device)
-                        } else {
-                            kernels::lshm_cluster_force(device)
-                        },
-                        &[
-                            (0, &b.params),
-                            (1, &b.positions),
-                            (2, b.model(ShapeArray::RestPosition)),
-                            (3, b.model(ShapeArray::ShapeVector)),
-                            (4, &b.nb_index),
-                            (5, &b.nb_weight),
-                            (6, b.model(ShapeArray::Rotation)),
-                            (7, b.model(ShapeArray::ClusterCentre)),
-                            (8, &b.forces),
-                        ],
-                    ),
-                ],
-            }
-        }
-        ShapeInfo::DebunneMeshfree { .. } | ShapeInfo::PointBased { .. } => {
-            let corotated = matches!(
-                shape,
-                ShapeInfo::DebunneMeshfree {
-                    corotation: Some(_),
-                    ..
-                }
-            );
-            let mut entries = vec![
-                (0, &b.params),
-                (1, &b.positions),
-                (2, b.model(ShapeArray::RestPosition)),
-                (3, &b.nb_index),
-                (4, &b.nb_weight),
-                (5, b.model(ShapeArray::InverseMoment)),
-                (6, b.model(ShapeArray::FirstPass)),
-            ];
-            let mut passes = Vec::new();
-            let entry = match (shape, mixed) {
-                (ShapeInfo::PointBased { .. }, false) => "pba",
-                (ShapeInfo::PointBased { .. }, true) => "pba_mixed",
-                (_, false) if corotated => {
-                    entries.push((8, b.model(ShapeArray::ShapeVector)));
-                    entries.push((9, b.model(ShapeArray::Rotation)));
-                    "deb_corotated"
-                }
-                // Mixed and co-rotated: the rotations first, in a pass of their own.
-                (_, true) if corotated => {
-                    passes.push(pass(
-                        kernels::continuum_first_pass(device, "deb_frame"),
-                        &[
-                            (0, &b.params),
-                            (1, &b.positions),
-                            (2, b.model(ShapeArray::RestPosition)),
-                            (3, &b.nb_index),
-                            (4, &b.nb_weight),
-                            (8, b.model(ShapeArray::ShapeVector)),
-                            (9, b.model(ShapeArray::Rotation)),
-                        ],
-                    ));
-                    entries.push((9, b.model(ShapeArray::Rotation)));
-                    "deb_corotated_mixed"
-                }
-                (_, false) => "deb_linear",
-                (_, true) => "deb_linear_mixed",
-            };
-            passes.push(pass_m(
-                kernels::continuum_first_pass(device, entry),
-                &entries,
-            ));
-            passes.push(pass(
-                kernels::gather_force(device),
-                &[
-                    (0, &b.params),
-                    (1, &b.positions),
-                    (2, b.model(ShapeArray::RestPosition)),
-                    (3, &b.nb_index),
-                    (4, &b.nb_weight),
-                    (5, b.model(ShapeArray::FirstPass)),
-                    (6, &b.forces),
-                ],
-            ));
-            passes
-        }
     }
 }
 

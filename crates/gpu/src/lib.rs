@@ -22,10 +22,14 @@
 #![warn(missing_docs)]
 
 mod backend;
+mod buffers;
 mod context;
 pub mod kernels;
+pub mod models;
+mod params;
 mod profile;
 
-pub use backend::{largest_buffer, Buffers, GpuBackend};
+pub use backend::{largest_buffer, GpuBackend};
+pub use buffers::{Binding, Buffers};
 pub use context::{GpuContext, GpuError};
 pub use profile::KernelTime;

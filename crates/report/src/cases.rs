@@ -39,7 +39,9 @@ use needlesim::runner::{make_backend, RunError};
 use needlesim_core::backend::check_bounded;
 use needlesim_core::calibration;
 use needlesim_core::integrator::StepParams;
-use needlesim_core::scene::{Axis, BackendChoice, LoadSpec, NodeSet, ShapeMatchingForces};
+use needlesim_core::scene::{
+    Axis, BackendChoice, DebunneParams, LoadSpec, NodeSet, ShapeMatchingForces, ShapeMatchingParams,
+};
 use needlesim_core::stability::max_eigenvalue;
 use needlesim_core::{
     Backend, CpuBackend, Material, NodeField, Scene, SceneBuilder, Threading, Tissue,
@@ -113,16 +115,22 @@ impl ModelId {
             ModelId::Msm => {
                 Material::mass_spring(k(calibration::mass_spring_stiffness(young, h, NEIGHBOURS)))
             }
-            ModelId::LshmNode => Material::shape_matching(k(
-                calibration::shape_matching_stiffness(young, h, NEIGHBOURS, false),
-            ))
-            .with_forces(ShapeMatchingForces::Node),
-            ModelId::LshmCluster => Material::shape_matching(k(
-                calibration::shape_matching_stiffness(young, h, NEIGHBOURS, true),
-            ))
-            .with_forces(ShapeMatchingForces::Cluster),
+            ModelId::LshmNode => Material::LocalShapeMatching(
+                ShapeMatchingParams::new(k(calibration::shape_matching_stiffness(
+                    young, h, NEIGHBOURS, false,
+                )))
+                .with_forces(ShapeMatchingForces::Node),
+            ),
+            ModelId::LshmCluster => Material::LocalShapeMatching(
+                ShapeMatchingParams::new(k(calibration::shape_matching_stiffness(
+                    young, h, NEIGHBOURS, true,
+                )))
+                .with_forces(ShapeMatchingForces::Cluster),
+            ),
             ModelId::Deb => Material::debunne(young, POISSON),
-            ModelId::DebCorotated => Material::debunne(young, POISSON).with_corotated(true),
+            ModelId::DebCorotated => {
+                Material::DebunneMeshfree(DebunneParams::new(young, POISSON).with_corotated(true))
+            }
             ModelId::Pba => Material::point_based(young, POISSON),
         }
     }
@@ -330,7 +338,9 @@ fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setup, ReportEr
     if matches!(case, CaseId::Sphere | CaseId::Column)
         && matches!(model, ModelId::Deb | ModelId::DebCorotated | ModelId::Pba)
     {
-        material = material.with_hourglass(RESAMPLED_HOURGLASS);
+        material = material
+            .with_key("hourglass", RESAMPLED_HOURGLASS)
+            .map_err(|e| ReportError::Scene(e.to_string()))?;
     }
     let floor = model.damping_floor(YOUNG, h);
     // Fixed below a quarter spacing along an axis: the lattice's first layer.

@@ -8,9 +8,7 @@
 //! Counts are kept in f64 until they are known to fit, so no integer overflows.
 
 use crate::error::SceneError;
-use crate::scene::{
-    DebunneParams, Material, Scene, ShapeMatchingForces, ShapeMatchingParams, DEFAULT_NEIGHBOURS,
-};
+use crate::scene::{Material, Scene, DEFAULT_NEIGHBOURS};
 
 pub use crate::scene::DEFAULT_MAX_MEMORY_GIB;
 
@@ -25,20 +23,7 @@ pub const LATTICE_BYTES_PER_POINT: f64 = 8.0;
 /// K f64 neighbour distances and the kernel length).
 pub fn bytes_per_node(material: &Material, k: usize) -> f64 {
     let k = k as f64;
-    let shape = match material {
-        Material::MassSpring(_) => 4.0 * k,
-        Material::LocalShapeMatching(ShapeMatchingParams { forces, .. }) => {
-            48.0 + if *forces == ShapeMatchingForces::Cluster {
-                16.0
-            } else {
-                0.0
-            }
-        }
-        Material::DebunneMeshfree(DebunneParams { corotated, .. }) => {
-            100.0 + if *corotated { 32.0 } else { 0.0 }
-        }
-        Material::PointBased(_) => 100.0,
-    };
+    let shape = material.shape_bytes_per_node(k);
     let simulation = 48.0 + 8.0 * k + shape;
     let build = 24.0 + 8.0 + 8.0 + 16.0 + 8.0 * k + 8.0;
     2.0 * simulation + build

@@ -39,10 +39,269 @@
 //! floats per node), and for
 //! `corotated` the shape vectors and warm-start rotations of shape matching.
 
-use super::mls::pack_first_pass;
-use crate::math::Vec4;
+use super::local_shape_matching::{cluster_frame, rest_positions, shape_vector, shape_vectors};
+use super::mls::{
+    default_hourglass, pack_first_pass, ContinuumArrays, ContinuumConstants, NodeVolumes,
+};
+use super::mueller2016_rotation::default_iterations;
+use super::{
+    row, BuildContext, ForceInput, ModelInfo, ModelState, ShapeArray, ShapeRow, TissueModel,
+};
+use crate::calibration::UncalibratedNeighbours;
+use crate::error::SceneError;
+use crate::math::{Vec4, QUAT_IDENTITY};
 use crate::neighbours::Neighbours;
-use glam::{Mat3, Vec3};
+use glam::{Mat3, Quat, Vec3};
+
+/// Parameters of the Debunne meshfree model.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DebunneParams {
+    /// Young's modulus E in Pa.
+    pub young_modulus: f64,
+    /// Poisson ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Co-rotate the linear model with each node's shape matching rotation R_i:
+    /// `f_i = R_i sum_j K_ij (R_i^T (x_j - x_i) - (x0_j - x0_i))`. Off by default (the
+    /// paper's plain linear model, which does not survive large rotations).
+    #[serde(default)]
+    pub corotated: bool,
+    /// Quaternion iterations per step of the rotation extraction when `corotated`.
+    #[serde(default = "crate::models::mueller2016_rotation::default_iterations")]
+    pub rotation_iterations: u32,
+    /// Hourglass control alpha (dimensionless): stiffness of the non-affine part of a
+    /// neighbourhood's motion, in units of `mu V_i / sum_j w_ij |x_ij|^2`.
+    #[serde(default = "crate::models::mls::default_hourglass")]
+    pub hourglass: f64,
+    /// The volume `V_i` that weights each node's strain energy: `cell` (default),
+    /// `density` or `uniform` (see [`NodeVolumes`]).
+    #[serde(default)]
+    pub node_volumes: NodeVolumes,
+}
+
+impl DebunneParams {
+    /// `model = "debunne_meshfree"` with Young's modulus in Pa and the Poisson ratio, the
+    /// other keys at their defaults (not co-rotated, hourglass 0.1, cell volumes).
+    pub const fn new(young_modulus: f64, poisson_ratio: f64) -> DebunneParams {
+        DebunneParams {
+            young_modulus,
+            poisson_ratio,
+            corotated: false,
+            rotation_iterations: default_iterations(),
+            hourglass: default_hourglass(),
+            node_volumes: NodeVolumes::Cell,
+        }
+    }
+
+    /// `corotated`: co-rotate the linear model.
+    pub const fn with_corotated(mut self, corotated: bool) -> Self {
+        self.corotated = corotated;
+        self
+    }
+
+    /// `rotation_iterations`.
+    pub const fn with_rotation_iterations(mut self, iterations: u32) -> Self {
+        self.rotation_iterations = iterations;
+        self
+    }
+
+    /// `hourglass`: the hourglass control alpha.
+    pub const fn with_hourglass(mut self, hourglass: f64) -> Self {
+        self.hourglass = hourglass;
+        self
+    }
+
+    /// `node_volumes`.
+    pub const fn with_node_volumes(mut self, node_volumes: NodeVolumes) -> Self {
+        self.node_volumes = node_volumes;
+        self
+    }
+}
+
+impl TissueModel for DebunneParams {
+    type Shape = Shape;
+
+    const INFO: ModelInfo = ModelInfo {
+        tag: "debunne_meshfree",
+        short_name: "deb",
+        label: "Debunne meshfree",
+        structural_keys: &["corotated", "rotation_iterations", "node_volumes"],
+    };
+
+    fn validate(&self, key: &str) -> Result<(), SceneError> {
+        crate::validate::elastic_moduli(key, self.young_modulus, self.poisson_ratio)?;
+        crate::validate::rotation_iterations_in_range(key, self.rotation_iterations)?;
+        crate::validate::non_negative_finite(&format!("{key}.hourglass"), self.hourglass)
+    }
+
+    /// `[lambda, mu, alpha mu, 0]`.
+    fn material_row(&self) -> Vec4 {
+        let c = self.constants();
+        [c.lambda, c.mu, c.hourglass, 0.0]
+    }
+
+    /// Rest position, inverse moment and first pass (and the frame when co-rotated).
+    fn shape_bytes_per_node(&self, _k: f64) -> f64 {
+        100.0 + if self.corotated { 32.0 } else { 0.0 }
+    }
+
+    fn elastic_moduli(&self, _: f64, _: usize) -> Result<(f64, f64), UncalibratedNeighbours> {
+        Ok((self.young_modulus, self.poisson_ratio))
+    }
+
+    fn build(&self, rest: &[Vec4], nb: &Neighbours, n: usize, ctx: BuildContext) -> Shape {
+        let corotation = self.corotated.then(|| Corotation {
+            shape_vector: shape_vectors(&rest_positions(rest), nb, n),
+            rotation: vec![QUAT_IDENTITY; rest.len()],
+        });
+        Shape {
+            params: *self,
+            continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx),
+            corotation,
+        }
+    }
+}
+
+impl DebunneParams {
+    /// The constants the kernels use.
+    pub fn constants(&self) -> ContinuumConstants {
+        ContinuumConstants::new(self.young_modulus, self.poisson_ratio, 0.0, self.hourglass)
+    }
+}
+
+/// The shape matching frame used to co-rotate the Debunne model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Corotation {
+    /// Shape vectors v = x0 - C0 (w = 0).
+    pub shape_vector: Vec<Vec4>,
+    /// Rotation quaternions `[x, y, z, w]` from the last step.
+    pub rotation: Vec<Vec4>,
+}
+
+/// The Debunne model's shape information.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    /// The parameters.
+    pub params: DebunneParams,
+    /// Rest positions and volumes, inverse moments, first pass.
+    pub continuum: ContinuumArrays,
+    /// Shape vectors and warm-start rotations (`corotated = true` only).
+    pub corotation: Option<Corotation>,
+}
+
+impl ModelState for Shape {
+    fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
+        let mut v = self.continuum.arrays();
+        if let Some(c) = &self.corotation {
+            v.push((
+                ShapeArray::ShapeVector,
+                bytemuck::cast_slice(&c.shape_vector[..]),
+            ));
+            v.push((ShapeArray::Rotation, bytemuck::cast_slice(&c.rotation[..])));
+        }
+        v
+    }
+
+    fn arrays_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
+        let mut v = self.continuum.arrays_mut();
+        if let Some(c) = &mut self.corotation {
+            v.push((
+                ShapeArray::ShapeVector,
+                bytemuck::cast_slice_mut(&mut c.shape_vector[..]),
+            ));
+            v.push((
+                ShapeArray::Rotation,
+                bytemuck::cast_slice_mut(&mut c.rotation[..]),
+            ));
+        }
+        v
+    }
+
+    fn node_rows(
+        &self,
+        i: usize,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        volume_scale: f64,
+        rest_position: bool,
+    ) -> Vec<ShapeRow> {
+        let mut out = self
+            .continuum
+            .node_rows(i, rest, nb, volume_scale, rest_position);
+        if self.corotation.is_some() {
+            out.push(row(
+                ShapeArray::ShapeVector,
+                i,
+                &[shape_vector(i, rest, nb)],
+            ));
+        }
+        out
+    }
+
+    fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
+        self.continuum.volume_scale(rest, nb, n)
+    }
+
+    fn node_volumes(&self, n: usize) -> Option<Vec<f32>> {
+        Some(self.continuum.node_volumes(n))
+    }
+
+    fn cpu_forces(&mut self, input: &ForceInput, forces: &mut [Vec4]) {
+        let ForceInput {
+            positions: pos,
+            nb,
+            n,
+            threads,
+            node_material: material,
+            ..
+        } = *input;
+        let c = self.params.constants();
+        let one = [c.lambda, c.mu, c.hourglass, 0.0];
+        // `[lambda, mu, alpha mu]` of node i.
+        let constants = |i: usize| material.map_or(one, |m| m[i]);
+        let ContinuumArrays {
+            rest_position,
+            inverse_moment,
+            first_pass: first,
+            ..
+        } = &mut self.continuum;
+        let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
+        match &mut self.corotation {
+            None => threads.map_nodes(&mut first[..n], |i| {
+                let [lambda, mu, hg, _] = constants(i);
+                first_pass(
+                    i, pos, rest, nb, &a_inv[i], rest[i][3], lambda, mu, hg, None,
+                )
+            }),
+            Some(Corotation {
+                shape_vector,
+                rotation,
+            }) => {
+                let (sv, iters) = (&shape_vector[..], self.params.rotation_iterations);
+                threads.for_each_node(&mut first[..n], &mut rotation[..n], |i, q, rot| {
+                    let (_, r) =
+                        cluster_frame(i, pos, rest, sv[i], nb, iters, Quat::from_array(*rot));
+                    *rot = r.to_array();
+                    let [lambda, mu, hg, _] = constants(i);
+                    let r = Mat3::from_quat(r);
+                    *q = first_pass(
+                        i,
+                        pos,
+                        rest,
+                        nb,
+                        &a_inv[i],
+                        rest[i][3],
+                        lambda,
+                        mu,
+                        hg,
+                        Some(&r),
+                    );
+                });
+            }
+        }
+        self.continuum.gather_forces(input, forces);
+    }
+}
 
 /// Linear stress `sigma = lambda tr(eps) I + 2 mu eps` of `eps = sym(H)`, where `H` is the
 /// (rotated back) displacement gradient. Taking H rather than `F = I + H` avoids the

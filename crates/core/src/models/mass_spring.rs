@@ -19,12 +19,195 @@
 //!
 //! Shape information: `rest_length`, one `f32` per slot.
 
+use super::{
+    row, BuildContext, ForceInput, ModelInfo, ModelState, ShapeArray, ShapeRow, TissueModel,
+};
+use crate::calibration::{calibration, UncalibratedNeighbours};
+use crate::error::SceneError;
 use crate::math::{gather4, sqrt4, with_w, xyz, xyz_a, Vec4};
 use crate::neighbours::Neighbours;
+use crate::validate::{non_negative_finite, positive_finite};
 use glam::{Vec3A, Vec4 as Lanes4};
 
+/// Parameters of the weighted mass-spring model.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MassSpringParams {
+    /// Spring stiffness k in N/m (scaled by the pair weight).
+    pub stiffness: f64,
+    /// Spring damping along the spring in N s/m (scaled by the pair weight).
+    #[serde(default)]
+    pub spring_damping: f64,
+    /// How much of the body each spring stands for (`spring_share`, default `"cell"`).
+    #[serde(default)]
+    pub spring_share: SpringShare,
+}
+
+/// The share of the body a mass-spring spring stands for, a factor on its weight.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum SpringShare {
+    /// The larger cell volume of its two nodes over an interior node's cell (`spacing^3`):
+    /// 1 inside, 1/2 for a spring lying in a face of a box lattice, 1/4 along an edge: the
+    /// share of the lattice cells around the spring that lie inside the body. Under a
+    /// uniform strain a cube of 5^3 nodes is then 4.8% stiffer than the unbounded lattice,
+    /// 9^3 nodes 0.9% (K = 18; `"equal"`: 21.5% at 9^3), and the calibration `k = C E h`
+    /// barely drifts with resolution (`needlesim_core::calibration`). The price: edge and
+    /// corner springs are a quarter as strong, and a cube squashed to 10% of its height
+    /// and released stays 4.0% off its rest shape with K = 18 (the report's extreme
+    /// cases; with K = 16 it was 19%, and 3.6% with `"equal"`).
+    #[default]
+    Cell,
+    /// Every spring counts fully (the paper's weighted mass-spring): springs in the
+    /// surface make a block stiffer than the unbounded lattice under a uniform strain, by
+    /// 67% at 5^3 nodes and 8% at 25^3.
+    Equal,
+}
+
+impl MassSpringParams {
+    /// `model = "mass_spring"` with spring `stiffness` in N/m, the other keys at their
+    /// defaults (no spring damping, `spring_share = "cell"`).
+    pub const fn new(stiffness: f64) -> MassSpringParams {
+        MassSpringParams {
+            stiffness,
+            spring_damping: 0.0,
+            spring_share: SpringShare::Cell,
+        }
+    }
+
+    /// `spring_damping` in N s/m.
+    pub const fn with_spring_damping(mut self, spring_damping: f64) -> Self {
+        self.spring_damping = spring_damping;
+        self
+    }
+
+    /// `spring_share`.
+    pub const fn with_spring_share(mut self, spring_share: SpringShare) -> Self {
+        self.spring_share = spring_share;
+        self
+    }
+}
+
+impl TissueModel for MassSpringParams {
+    type Shape = Shape;
+
+    const INFO: ModelInfo = ModelInfo {
+        tag: "mass_spring",
+        short_name: "msm",
+        label: "mass-spring",
+        structural_keys: &["spring_share"],
+    };
+
+    fn validate(&self, key: &str) -> Result<(), SceneError> {
+        positive_finite(&format!("{key}.stiffness"), self.stiffness)?;
+        non_negative_finite(&format!("{key}.spring_damping"), self.spring_damping)
+    }
+
+    /// `[k, c, 0, 0]`.
+    fn material_row(&self) -> Vec4 {
+        [self.stiffness as f32, self.spring_damping as f32, 0.0, 0.0]
+    }
+
+    /// One rest length per slot.
+    fn shape_bytes_per_node(&self, k: f64) -> f64 {
+        4.0 * k
+    }
+
+    /// `E = k / (C h)` with the lattice's calibration constant; the lattice's Poisson
+    /// ratio is about 1/4 (docs/report).
+    fn elastic_moduli(
+        &self,
+        spacing: f64,
+        neighbours: usize,
+    ) -> Result<(f64, f64), UncalibratedNeighbours> {
+        let cal = calibration(neighbours)?;
+        Ok((self.stiffness / (cal.mass_spring * spacing), 0.25))
+    }
+
+    fn prepare_neighbours(
+        &self,
+        nb: &mut Neighbours,
+        node_volumes: &[f64],
+        spacing: f64,
+        n: usize,
+    ) {
+        if self.spring_share == SpringShare::Cell {
+            apply_cell_shares(nb, node_volumes, spacing, n);
+        }
+    }
+
+    fn build(&self, rest: &[Vec4], nb: &Neighbours, n: usize, _ctx: BuildContext) -> Shape {
+        Shape {
+            params: *self,
+            rest_length: rest_lengths(rest, nb, n),
+        }
+    }
+}
+
+/// The mass-spring model's shape information.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    /// The parameters.
+    pub params: MassSpringParams,
+    /// `capacity * K` rest lengths in metres.
+    pub rest_length: Vec<f32>,
+}
+
+impl ModelState for Shape {
+    fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
+        vec![(
+            ShapeArray::RestLength,
+            bytemuck::cast_slice(&self.rest_length),
+        )]
+    }
+
+    fn arrays_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
+        vec![(
+            ShapeArray::RestLength,
+            bytemuck::cast_slice_mut(&mut self.rest_length),
+        )]
+    }
+
+    fn node_rows(
+        &self,
+        i: usize,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        _volume_scale: f64,
+        _rest_position: bool,
+    ) -> Vec<ShapeRow> {
+        vec![row(
+            ShapeArray::RestLength,
+            i,
+            &rest_length_row(i, rest, nb),
+        )]
+    }
+
+    fn cpu_forces(&mut self, input: &ForceInput, forces: &mut [Vec4]) {
+        let ForceInput {
+            positions: pos,
+            velocities: vel,
+            nb,
+            ..
+        } = *input;
+        let rest_length = &self.rest_length[..];
+        match input.node_material {
+            None => {
+                let p = &self.params;
+                let (k, c) = (p.stiffness as f32, p.spring_damping as f32);
+                input
+                    .threads
+                    .map_nodes(forces, |i| force(i, pos, vel, nb, rest_length, k, c))
+            }
+            Some(m) => input
+                .threads
+                .map_nodes(forces, |i| force_mixed(i, pos, vel, nb, rest_length, m)),
+        }
+    }
+}
+
 /// Multiplies the weight of every spring of the first `n` nodes by its share of the body,
-/// `max(V_i, V_j) / spacing^3` ([`crate::scene::SpringShare::Cell`]). Both slots of a
+/// `max(V_i, V_j) / spacing^3` ([`SpringShare::Cell`]). Both slots of a
 /// mutual pair get the same bits, so the lists stay mutual.
 pub fn apply_cell_shares(nb: &mut Neighbours, node_volumes: &[f64], spacing: f64, n: usize) {
     let cell = spacing.powi(3);

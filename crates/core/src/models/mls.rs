@@ -28,6 +28,7 @@
 //! relative threshold [`MOMENT_TOLERANCE`]): the gradient along a direction the neighbourhood does not span
 //! is taken as zero instead of being amplified by a near-zero eigenvalue.
 
+use super::traits::{row, BuildContext, ForceInput, ShapeArray, ShapeRow};
 use crate::math::{with_w, xyz, Vec4};
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Vec3};
@@ -57,46 +58,197 @@ impl ContinuumConstants {
             hourglass: row[3],
         }
     }
+}
 
-    /// The constants of a Debunne or point based material; `None` for the other models.
-    pub fn of(material: &crate::scene::Material) -> Option<ContinuumConstants> {
-        use crate::scene::{lame, DebunneParams, Material, PointBasedParams};
-        let (e, nu, kv, alpha) = match *material {
-            Material::DebunneMeshfree(DebunneParams {
-                young_modulus,
-                poisson_ratio,
-                hourglass,
-                ..
-            }) => (young_modulus, poisson_ratio, 0.0, hourglass),
-            Material::PointBased(PointBasedParams {
-                young_modulus,
-                poisson_ratio,
-                volume_stiffness,
-                hourglass,
-                ..
-            }) => (young_modulus, poisson_ratio, volume_stiffness, hourglass),
-            _ => return None,
-        };
+/// The node volumes `V_i` of the continuum models: the weights of their nodal
+/// integration `U = sum_i V_i W(F_i)`. All three add up to the volume enclosed by the
+/// surface; they differ in how it is shared.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeVolumes {
+    /// The node's cell: the part of the body nearer to it than to any other node (exact on
+    /// box lattices: `h^3`, halved on each face; sub-sampled for OBJ geometry). Nodes on
+    /// the surface get less, which makes bending stiffness converge (the report's
+    /// cantilever).
+    #[default]
+    Cell,
+    /// The density estimate of Mueller et al. 2004, section 4.2: `V_i = m_i / rho_i`,
+    /// `rho_i = sum_j m_j W_ij`. Surface nodes have fewer neighbours, a lower density and
+    /// so a larger volume: too stiff in bending.
+    Density,
+    /// Every node `V / n`: also too stiff in bending, by `(n+1)/(n-1)` with `n` nodes
+    /// through the thickness.
+    Uniform,
+}
+
+/// Lame parameters `(lambda, mu)` from Young's modulus and the Poisson ratio.
+pub fn lame(young_modulus: f64, poisson_ratio: f64) -> (f64, f64) {
+    let (e, nu) = (young_modulus, poisson_ratio);
+    (
+        e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+        e / (2.0 * (1.0 + nu)),
+    )
+}
+
+/// Hourglass control on by default: without it zig-zag fields cost no energy.
+pub(crate) const fn default_hourglass() -> f64 {
+    0.1
+}
+
+impl ContinuumConstants {
+    /// The constants of Young's modulus `e`, Poisson ratio `nu`, volume stiffness `kv`
+    /// and hourglass alpha.
+    pub fn new(e: f64, nu: f64, kv: f64, alpha: f64) -> ContinuumConstants {
         let (lambda, mu) = lame(e, nu);
-        Some(ContinuumConstants {
+        ContinuumConstants {
             lambda: lambda as f32,
             mu: mu as f32,
             volume_stiffness: kv as f32,
             hourglass: (alpha * mu) as f32,
-        })
+        }
     }
+}
+
+/// The arrays every continuum model has: rest positions with the node volumes, inverse
+/// moment matrices and the per-step first-pass result.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContinuumArrays {
+    /// Rest positions x0, w = the node volume V_i in m^3 ([`NodeVolumes`]).
+    pub rest_position: Vec<Vec4>,
+    /// `A_i^-1`, row-major 3x3 (the paper's Table 1).
+    pub inverse_moment: Vec<[f32; 9]>,
+    /// How the volumes were chosen (and a needle node's volume is chosen).
+    pub volume_rule: NodeVolumes,
+    /// First-pass result of the current step ([`pack_first_pass`]).
+    pub first_pass: Vec<[f32; 12]>,
+}
+
+impl ContinuumArrays {
+    /// The arrays of the first `n` of `rest` with volumes by `rule`.
+    pub fn build(
+        rule: NodeVolumes,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        n: usize,
+        ctx: BuildContext,
+    ) -> ContinuumArrays {
+        let rest_position = super::local_shape_matching::rest_positions(rest);
+        ContinuumArrays {
+            inverse_moment: inverse_moments(&rest_position, nb, n),
+            rest_position: with_volumes(rest_position, node_volumes(rule, rest, nb, n, ctx)),
+            volume_rule: rule,
+            first_pass: vec![[0.0; 12]; rest.len()],
+        }
+    }
+
+    /// `rest_position`, `inverse_moment`, `first_pass`.
+    pub fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
+        vec![
+            (
+                ShapeArray::RestPosition,
+                bytemuck::cast_slice(&self.rest_position[..]),
+            ),
+            (
+                ShapeArray::InverseMoment,
+                bytemuck::cast_slice(&self.inverse_moment[..]),
+            ),
+            (
+                ShapeArray::FirstPass,
+                bytemuck::cast_slice(&self.first_pass[..]),
+            ),
+        ]
+    }
+
+    /// [`ContinuumArrays::arrays`], mutable.
+    pub fn arrays_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
+        vec![
+            (
+                ShapeArray::RestPosition,
+                bytemuck::cast_slice_mut(&mut self.rest_position[..]),
+            ),
+            (
+                ShapeArray::InverseMoment,
+                bytemuck::cast_slice_mut(&mut self.inverse_moment[..]),
+            ),
+            (
+                ShapeArray::FirstPass,
+                bytemuck::cast_slice_mut(&mut self.first_pass[..]),
+            ),
+        ]
+    }
+
+    /// Node `i`'s inverse moment, and its rest position with its volume (a new node, or
+    /// any node with `density` volumes, which depend on the neighbours).
+    pub fn node_rows(
+        &self,
+        i: usize,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        volume_scale: f64,
+        rest_position: bool,
+    ) -> Vec<ShapeRow> {
+        let mut out = vec![row(
+            ShapeArray::InverseMoment,
+            i,
+            &[inverse_moment(i, rest, nb)],
+        )];
+        if rest_position || self.volume_rule == NodeVolumes::Density {
+            let v = added_node_volume(self.volume_rule, i, rest, nb, volume_scale);
+            let r = rest[i];
+            out.push(row(ShapeArray::RestPosition, i, &[[r[0], r[1], r[2], v]]));
+        }
+        out
+    }
+
+    /// See [`super::ShapeInfo::volume_scale`].
+    pub fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
+        let vol: f64 = self.rest_position[..n].iter().map(|p| p[3] as f64).sum();
+        let raw: f64 = match self.volume_rule {
+            NodeVolumes::Density => (0..n).map(|i| raw_volume(i, rest, nb)).sum(),
+            NodeVolumes::Cell | NodeVolumes::Uniform => n as f64,
+        };
+        if raw > 0.0 {
+            vol / raw
+        } else {
+            0.0
+        }
+    }
+
+    /// The volumes of the first `n` nodes.
+    pub fn node_volumes(&self, n: usize) -> Vec<f32> {
+        self.rest_position[..n].iter().map(|p| p[3]).collect()
+    }
+
+    /// The second pass: every node's force from the first-pass results.
+    pub fn gather_forces(&self, input: &ForceInput, forces: &mut [Vec4]) {
+        let (pos, nb) = (input.positions, input.nb);
+        let (rest, first) = (&self.rest_position[..], &self.first_pass[..]);
+        input
+            .threads
+            .map_nodes(forces, |i| gather_force(i, pos, rest, nb, first));
+    }
+}
+
+/// Checks the keys every continuum model has; errors name `{key}.<parameter>`.
+pub(crate) fn validate_continuum(
+    key: &str,
+    young_modulus: f64,
+    poisson_ratio: f64,
+    hourglass: f64,
+) -> Result<(), crate::error::SceneError> {
+    crate::validate::elastic_moduli(key, young_modulus, poisson_ratio)?;
+    crate::validate::non_negative_finite(&format!("{key}.hourglass"), hourglass)
 }
 
 /// Node volumes `V_i` of the first `n` nodes by `rule`, adding up to the enclosed volume;
 /// slots `n..capacity` are 0.
 pub fn node_volumes(
-    rule: crate::scene::NodeVolumes,
+    rule: NodeVolumes,
     rest: &[Vec4],
     nb: &Neighbours,
     n: usize,
-    ctx: super::BuildContext,
+    ctx: BuildContext,
 ) -> Vec<f32> {
-    use crate::scene::NodeVolumes;
     match rule {
         NodeVolumes::Density => density_volumes(rest, nb, n, ctx.volume),
         NodeVolumes::Cell | NodeVolumes::Uniform => {
@@ -123,14 +275,14 @@ pub fn with_volumes(mut rest: Vec<Vec4>, volumes: Vec<f32>) -> Vec<Vec4> {
 /// Volume of node `i` added by the needle, given [`super::ShapeInfo::volume_scale`]: its
 /// scaled density estimate for `density` volumes, the mean node volume otherwise.
 pub fn added_node_volume(
-    rule: crate::scene::NodeVolumes,
+    rule: NodeVolumes,
     i: usize,
     rest: &[Vec4],
     nb: &Neighbours,
     scale: f64,
 ) -> f32 {
     match rule {
-        crate::scene::NodeVolumes::Density => (raw_volume(i, rest, nb) * scale) as f32,
+        NodeVolumes::Density => (raw_volume(i, rest, nb) * scale) as f32,
         _ => scale as f32,
     }
 }

@@ -21,6 +21,13 @@ use glam::{Mat3, Quat, Vec3, Vec4 as Lanes4};
 /// unit matrix entry; smaller updates are round-off).
 pub const ANGLE_TOLERANCE: f32 = 1e-6;
 
+/// Iterations per step by default (the key `rotation_iterations`). Warm started from the
+/// previous step, the rotation moves little per step; two iterations keep it converged
+/// while halving the cost of eight (measured on the 10932-node bench).
+pub const fn default_iterations() -> u32 {
+    2
+}
+
 /// Refines the unit quaternion `q` towards the rotation of A with at most `iterations`
 /// iterations. A should be scaled to order 1 (the `1e-9` guard is absolute).
 #[inline]

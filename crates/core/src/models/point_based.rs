@@ -13,17 +13,194 @@
 //! Green strain is rotation invariant: any rigid motion gives zero force.
 //!
 //! Node volumes `V_i` (w lane of the rest positions) are the nodes' cells by default
-//! ([`crate::scene::NodeVolumes`]). Mueller 2004 (section 4.2) takes them from the density
+//! ([`NodeVolumes`]). Mueller 2004 (section 4.2) takes them from the density
 //! estimate `rho_i = sum_j m_j W_ij` (`node_volumes = "density"`): with equal masses
 //! `V_i = m / rho_i` is proportional to `l_i^3 / (1 + sum_j w_ij)`, `l_i` the node's
 //! farthest neighbour distance (the kernel's length scale), scaled so that the volumes add
 //! up to the volume enclosed by the surface. Surface nodes have fewer neighbours and so
 //! too large a volume: the report's cantilever is 38% too stiff at 1025 nodes with it, 4%
 //! with cell volumes.
-use super::mls::{pack_first_pass, ContinuumConstants};
+use super::mls::{
+    default_hourglass, pack_first_pass, validate_continuum, ContinuumArrays, ContinuumConstants,
+    NodeVolumes,
+};
+use super::traits::{
+    BuildContext, ForceInput, ModelInfo, ModelState, ShapeArray, ShapeRow, TissueModel,
+};
+use crate::calibration::UncalibratedNeighbours;
+use crate::error::SceneError;
 use crate::math::Vec4;
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Vec3};
+
+/// Parameters of point based animation.
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PointBasedParams {
+    /// Young's modulus E in Pa.
+    pub young_modulus: f64,
+    /// Poisson ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Stiffness k_v in Pa of the volume-conserving energy `k_v/2 V (det F - 1)^2`
+    /// (Mueller et al. 2004, section 4.3); 0 (the default) switches it off.
+    #[serde(default)]
+    pub volume_stiffness: f64,
+    /// Hourglass control alpha, as for the Debunne model. Default 0.1: it removes the
+    /// zig-zag modes without changing the patch test. 0 is the original method, whose
+    /// zig-zag modes cost no energy: a 343-node cube twisted 90 degrees and released then
+    /// kept 2.2% of its twist (the report's extreme cases, K = 18; 0.01% with 0.1).
+    #[serde(default = "crate::models::mls::default_hourglass")]
+    pub hourglass: f64,
+    /// The volume `V_i` that weights each node's strain energy: `cell` (default),
+    /// `density` (the original method) or `uniform` (see [`NodeVolumes`]).
+    #[serde(default)]
+    pub node_volumes: NodeVolumes,
+}
+
+impl PointBasedParams {
+    /// `model = "point_based"` with Young's modulus in Pa and the Poisson ratio, the other
+    /// keys at their defaults (no volume term, hourglass 0.1, cell volumes).
+    pub const fn new(young_modulus: f64, poisson_ratio: f64) -> PointBasedParams {
+        PointBasedParams {
+            young_modulus,
+            poisson_ratio,
+            volume_stiffness: 0.0,
+            hourglass: default_hourglass(),
+            node_volumes: NodeVolumes::Cell,
+        }
+    }
+
+    /// `hourglass`: the hourglass control alpha.
+    pub const fn with_hourglass(mut self, hourglass: f64) -> Self {
+        self.hourglass = hourglass;
+        self
+    }
+
+    /// `node_volumes`.
+    pub const fn with_node_volumes(mut self, node_volumes: NodeVolumes) -> Self {
+        self.node_volumes = node_volumes;
+        self
+    }
+
+    /// `volume_stiffness` in Pa.
+    pub const fn with_volume_stiffness(mut self, volume_stiffness: f64) -> Self {
+        self.volume_stiffness = volume_stiffness;
+        self
+    }
+
+    /// The constants the kernels use.
+    pub fn constants(&self) -> ContinuumConstants {
+        ContinuumConstants::new(
+            self.young_modulus,
+            self.poisson_ratio,
+            self.volume_stiffness,
+            self.hourglass,
+        )
+    }
+}
+
+impl TissueModel for PointBasedParams {
+    type Shape = Shape;
+
+    const INFO: ModelInfo = ModelInfo {
+        tag: "point_based",
+        short_name: "pba",
+        label: "point based animation",
+        structural_keys: &["node_volumes"],
+    };
+
+    fn validate(&self, key: &str) -> Result<(), SceneError> {
+        validate_continuum(key, self.young_modulus, self.poisson_ratio, self.hourglass)?;
+        crate::validate::non_negative_finite(
+            &format!("{key}.volume_stiffness"),
+            self.volume_stiffness,
+        )
+    }
+
+    /// `[lambda, mu, k_v, alpha mu]`.
+    fn material_row(&self) -> Vec4 {
+        let c = self.constants();
+        [c.lambda, c.mu, c.volume_stiffness, c.hourglass]
+    }
+
+    /// Rest position, inverse moment and first pass.
+    fn shape_bytes_per_node(&self, _k: f64) -> f64 {
+        100.0
+    }
+
+    fn elastic_moduli(&self, _: f64, _: usize) -> Result<(f64, f64), UncalibratedNeighbours> {
+        Ok((self.young_modulus, self.poisson_ratio))
+    }
+
+    fn build(&self, rest: &[Vec4], nb: &Neighbours, n: usize, ctx: BuildContext) -> Shape {
+        Shape {
+            params: *self,
+            continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx),
+        }
+    }
+}
+
+/// Point based animation's shape information.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    /// The parameters.
+    pub params: PointBasedParams,
+    /// Rest positions and volumes, inverse moments, first pass.
+    pub continuum: ContinuumArrays,
+}
+
+impl ModelState for Shape {
+    fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
+        self.continuum.arrays()
+    }
+
+    fn arrays_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
+        self.continuum.arrays_mut()
+    }
+
+    fn node_rows(
+        &self,
+        i: usize,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        volume_scale: f64,
+        rest_position: bool,
+    ) -> Vec<ShapeRow> {
+        self.continuum
+            .node_rows(i, rest, nb, volume_scale, rest_position)
+    }
+
+    fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
+        self.continuum.volume_scale(rest, nb, n)
+    }
+
+    fn node_volumes(&self, n: usize) -> Option<Vec<f32>> {
+        Some(self.continuum.node_volumes(n))
+    }
+
+    fn cpu_forces(&mut self, input: &ForceInput, forces: &mut [Vec4]) {
+        let ForceInput {
+            positions: pos,
+            nb,
+            n,
+            ..
+        } = *input;
+        let c = self.params.constants();
+        let material = input.node_material;
+        let ContinuumArrays {
+            rest_position,
+            inverse_moment,
+            first_pass: first,
+            ..
+        } = &mut self.continuum;
+        let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
+        input.threads.map_nodes(&mut first[..n], |i| {
+            let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
+            first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
+        });
+        self.continuum.gather_forces(input, forces);
+    }
+}
 
 /// `I + J`.
 #[inline(always)]

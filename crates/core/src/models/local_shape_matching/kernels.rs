@@ -1,40 +1,8 @@
-//! Local shape matching (LSHM), paper section 3 and Algorithm 1.
-//!
-//! One cluster per node i: the node (weight 1) and its neighbours (weights w_ij). With
-//! offsets from the node, `d_j = x_j - x_i` and `d0_j = x0_j - x0_i`, the cluster centre is
-//! `c_i = sum_j w_ij d_j / W_i` (so `C_i = x_i + c_i`) and the shape vector is
-//! `v_i = x0_i - C0_i = -sum_j w_ij d0_j / W_i`. Each step:
-//!
-//! - `A_i = sum_j w_ij (d_j - c_i)(d0_j - c0_i)^T`, scaled by `1 / sum_j w_ij |d0_j - c0_i|^2`;
-//! - `R_i` = rotation of the polar decomposition of `A_i`, by the warm-started quaternion
-//!   iteration of [`super::mueller2016_rotation`] (the quaternion is kept per node);
-//! - goal `g_i = C_i + R_i v_i` and force `f_i = k_s (g_i - x_i) = k_s (c_i + R_i v_i)`
-//!   ([`node_force`], variant `node`, the paper's equation 1).
-//!
-//! The paper's force acts only on the cluster's own node and is not the gradient of any
-//! energy: its rotation term feeds energy into the system, and an undamped cube oscillating
-//! about rest gains energy at a rate that grows like `sqrt(k_s / m)` (measured: a 1% stretch
-//! of a 648-node cube with k_s = 100 N/m grows from 1e-3 J to 80 J kinetic energy in 4 s
-//! without damping; with the rotation frozen the energy stays bounded). Velocity damping
-//! above that rate keeps it stable. Variant `cluster` ([`cluster_force`]) instead lets
-//! every cluster pull all its members towards its goals (the gradient of the shape
-//! matching energy, as in Mueller et al. 2005): conservative and momentum-conserving, at
-//! the cost of a second pass and one more array (`cluster_centre`).
-//!
-//! Offsets from the node keep f32 round-off independent of where the tissue is, and the
-//! shape vector is computed with the same arithmetic as the slot-by-slot kernels (the GPU's,
-//! [`cluster_frame`]), so the rest state gives exactly zero force there; the CPU's
-//! four-lane per-node path ([`node_forces`]) sums in another order, so its rest force is
-//! f32 round-off. The model is not momentum conserving (each cluster pulls only its own
-//! node), as in the paper.
-//!
-//! Shape information: `rest_position` (x0, needed for A), `shape_vector` (v) and
-//! `rotation` (the warm-start quaternion `[x, y, z, w]`), one `[f32; 4]` each per node;
-//! the `cluster` variant adds `cluster_centre` (c_i of the current step).
-//! The paper's Table 1 lists only v; A cannot be formed without the rest positions.
+//! The shape matching kernels: cluster sums, frames and forces, per node or four slots at
+//! a time (the equations are in the parent module).
 
-use super::mueller2016_rotation::{extract_rotation, extract_rotation4};
 use crate::math::{gather4, with_w, xyz, Vec4};
+use crate::models::mueller2016_rotation::{extract_rotation, extract_rotation4};
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Quat, Vec3, Vec4 as Lanes4};
 
@@ -357,7 +325,7 @@ pub fn cluster_force(
 }
 
 /// [`cluster_force`] with a stiffness per cluster (`material[i][0] = k_s,i`,
-/// [`super::material_row`]): `f_j = k_s,j (g_jj - x_j) + sum_i k_s,i w_ij (g_ij - x_j)`,
+/// [`crate::models::material_row`]): `f_j = k_s,j (g_jj - x_j) + sum_i k_s,i w_ij (g_ij - x_j)`,
 /// the gradient of `sum_i k_s,i / 2 sum_j w_ij |g_ij - x_j|^2`.
 #[inline]
 #[allow(clippy::too_many_arguments)]

@@ -1,0 +1,73 @@
+//! How the CPU kernels run over the nodes: serially, or in parallel chunks on a rayon pool.
+//!
+//! Each node's force and update depend only on the previous state, so the chunking does not
+//! change a single bit of the results; [`Threads`] only decides where the work runs.
+
+use rayon::prelude::*;
+
+/// Nodes per parallel work item.
+pub const CHUNK: usize = 256;
+
+/// Where a CPU kernel runs: on the calling thread, or in chunks of [`CHUNK`] nodes on a
+/// pool (the backend's own, or rayon's global one).
+#[derive(Clone, Copy)]
+pub struct Threads<'a> {
+    /// The backend's own pool; `None` for rayon's global pool.
+    pub pool: Option<&'a rayon::ThreadPool>,
+    /// Whether to run in parallel at all.
+    pub parallel: bool,
+}
+
+impl<'a> Threads<'a> {
+    /// One thread.
+    pub const SERIAL: Threads<'static> = Threads {
+        pool: None,
+        parallel: false,
+    };
+
+    /// Runs `f(first, &mut a[chunk], &mut b[chunk])` over consecutive chunks of [`CHUNK`]
+    /// nodes.
+    pub fn for_each_chunk<A: Send, B: Send>(
+        self,
+        a: &mut [A],
+        b: &mut [B],
+        f: impl Fn(usize, &mut [A], &mut [B]) + Sync + Send,
+    ) {
+        if !self.parallel {
+            for (c, (ca, cb)) in a.chunks_mut(CHUNK).zip(b.chunks_mut(CHUNK)).enumerate() {
+                f(c * CHUNK, ca, cb);
+            }
+            return;
+        }
+        let mut job = move || {
+            a.par_chunks_mut(CHUNK)
+                .zip(b.par_chunks_mut(CHUNK))
+                .enumerate()
+                .for_each(|(c, (ca, cb))| f(c * CHUNK, ca, cb))
+        };
+        match self.pool {
+            Some(p) => p.install(job),
+            None => job(),
+        }
+    }
+
+    /// Runs `f(i, &mut a[i], &mut b[i])` for every node.
+    pub fn for_each_node<A: Send, B: Send>(
+        self,
+        a: &mut [A],
+        b: &mut [B],
+        f: impl Fn(usize, &mut A, &mut B) + Sync + Send,
+    ) {
+        self.for_each_chunk(a, b, |first, ca, cb| {
+            for (k, (x, y)) in ca.iter_mut().zip(cb.iter_mut()).enumerate() {
+                f(first + k, x, y);
+            }
+        });
+    }
+
+    /// Sets `out[i] = f(i)` for every node.
+    pub fn map_nodes<A: Send>(self, out: &mut [A], f: impl Fn(usize) -> A + Sync + Send) {
+        let mut unit = vec![(); out.len()];
+        self.for_each_node(out, &mut unit, |i, o, _| *o = f(i));
+    }
+}

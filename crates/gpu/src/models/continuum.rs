@@ -1,0 +1,75 @@
+//! What the two continuum models share on the GPU: `shaders/continuum_first_pass.wgsl`
+//! (one entry point per model and variant) and `shaders/gather_force.wgsl`, the twins of
+//! [`needlesim_core::models::mls`].
+
+use super::MATERIAL;
+use crate::buffers::Binding::{self, *};
+use crate::kernels::{KernelSpec, CLUSTER_FRAME, COMMON};
+use needlesim_core::models::mls::ContinuumConstants;
+use needlesim_core::models::ShapeArray::{
+    FirstPass, InverseMoment, RestPosition, Rotation, ShapeVector,
+};
+
+/// The first-pass shader and the code it includes.
+pub const FIRST_PASS_SOURCES: &[&str] = &[
+    COMMON,
+    CLUSTER_FRAME,
+    include_str!("../../shaders/continuum_first_pass.wgsl"),
+];
+
+/// The first pass's bindings.
+pub const FIRST_PASS: [(u32, Binding); 7] = [
+    (0, Params),
+    (1, Positions),
+    (2, Model(RestPosition)),
+    (3, NeighbourIndex),
+    (4, NeighbourWeight),
+    (5, Model(InverseMoment)),
+    (6, Model(FirstPass)),
+];
+
+/// [`FIRST_PASS`] and the node materials.
+pub const FIRST_PASS_MIXED: [(u32, Binding); 8] = [
+    FIRST_PASS[0],
+    FIRST_PASS[1],
+    FIRST_PASS[2],
+    FIRST_PASS[3],
+    FIRST_PASS[4],
+    FIRST_PASS[5],
+    FIRST_PASS[6],
+    MATERIAL,
+];
+
+/// The shape matching frame's arrays.
+pub const SHAPE_VECTOR: (u32, Binding) = (8, Model(ShapeVector));
+/// The warm-start rotations.
+pub const ROTATION: (u32, Binding) = (9, Model(Rotation));
+
+const GATHER_BINDINGS: [(u32, Binding); 7] = [
+    (0, Params),
+    (1, Positions),
+    (2, Model(RestPosition)),
+    (3, NeighbourIndex),
+    (4, NeighbourWeight),
+    (5, Model(FirstPass)),
+    (6, Forces),
+];
+
+/// `gather_force.wgsl::main`: every node's force from the first-pass results
+/// ([`mls::gather_force`]).
+///
+/// [`mls::gather_force`]: needlesim_core::models::mls::gather_force
+pub const GATHER_FORCE: KernelSpec = KernelSpec {
+    name: "gather_force",
+    sources: &[COMMON, include_str!("../../shaders/gather_force.wgsl")],
+    entry: "main",
+    bindings: &GATHER_BINDINGS,
+};
+
+/// Writes a continuum model's constants.
+pub fn write_constants(c: ContinuumConstants, params: &mut crate::params::Params) {
+    params.lambda = c.lambda;
+    params.mu = c.mu;
+    params.volume_stiffness = c.volume_stiffness;
+    params.hourglass = c.hourglass;
+}

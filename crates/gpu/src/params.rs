@@ -1,0 +1,98 @@
+//! The uniform parameter block every kernel reads, laid out once here; the `Params`
+//! struct of the top-level `shaders/common.wgsl` must match it member by member (checked
+//! by naga in this module's test).
+
+use bytemuck::{Pod, Zeroable};
+
+/// The uniform parameter block (`Params` in `shaders/common.wgsl`). Each model writes its
+/// own constants ([`crate::models::GpuModel::write_params`]); the rest stay 0.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct Params {
+    /// Active nodes.
+    pub n_active: u32,
+    /// Neighbour slots per node.
+    pub k: u32,
+    /// Rotation extraction iterations (shape matching, co-rotated Debunne).
+    pub iterations: u32,
+    /// Workgroups along x of a dispatch (wider ones continue along y).
+    pub groups_x: u32,
+    /// Time step, s.
+    pub dt: f32,
+    /// `1 / (1 + dt c)` of the mass-proportional damping.
+    pub damping_factor: f32,
+    /// Spring or shape matching stiffness, N/m.
+    pub stiffness: f32,
+    /// Mass-spring spring damping, N s/m.
+    pub spring_damping: f32,
+    /// Gravity, m/s^2 (w unused).
+    pub gravity: [f32; 4],
+    /// Lame lambda, Pa (continuum models).
+    pub lambda: f32,
+    /// Lame mu, Pa (continuum models).
+    pub mu: f32,
+    /// Volume stiffness, Pa (point based animation).
+    pub volume_stiffness: f32,
+    /// Hourglass alpha times mu, Pa (continuum models).
+    pub hourglass: f32,
+    /// Padding to a 16-byte multiple.
+    pub pad: [f32; 4],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::{offset_of, size_of};
+
+    /// The WGSL struct has the Rust struct's members at the same offsets, and the same
+    /// size: a member added to one side only, reordered or retyped fails here.
+    #[test]
+    fn wgsl_params_match_the_rust_layout() {
+        // common.wgsl refers to the `params` each kernel declares: parse it with one.
+        let source = crate::kernels::INTEGRATE_NODE.sources.join("\n");
+        let module = naga::front::wgsl::parse_str(&source).expect("common.wgsl");
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("Params"))
+            .expect("struct Params in common.wgsl");
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("Params is not a struct");
+        };
+        let wgsl: Vec<(String, u32)> = members
+            .iter()
+            .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+            .collect();
+        let rust: Vec<(&str, usize)> = vec![
+            ("n_active", offset_of!(Params, n_active)),
+            ("k", offset_of!(Params, k)),
+            ("iterations", offset_of!(Params, iterations)),
+            ("groups_x", offset_of!(Params, groups_x)),
+            ("dt", offset_of!(Params, dt)),
+            ("damping_factor", offset_of!(Params, damping_factor)),
+            ("stiffness", offset_of!(Params, stiffness)),
+            ("spring_damping", offset_of!(Params, spring_damping)),
+            ("gravity", offset_of!(Params, gravity)),
+            ("lambda", offset_of!(Params, lambda)),
+            ("mu", offset_of!(Params, mu)),
+            ("volume_stiffness", offset_of!(Params, volume_stiffness)),
+            ("hourglass", offset_of!(Params, hourglass)),
+        ];
+        for (name, offset) in &rust {
+            let found = wgsl.iter().find(|(n, _)| n == name);
+            assert_eq!(
+                found.map(|(_, o)| *o as usize),
+                Some(*offset),
+                "member `{name}`: WGSL {found:?}, Rust offset {offset}"
+            );
+        }
+        // Every WGSL member that is not padding is one of the Rust members.
+        for (n, _) in wgsl.iter().filter(|(n, _)| !n.starts_with("pad")) {
+            assert!(
+                rust.iter().any(|(r, _)| r == n),
+                "WGSL member `{n}` not in Rust"
+            );
+        }
+        assert_eq!(*span as usize, size_of::<Params>());
+    }
+}
