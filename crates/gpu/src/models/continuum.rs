@@ -1,21 +1,18 @@
-//! What the two continuum models share on the GPU: `shaders/continuum_first_pass.wgsl`
-//! (one entry point per model and variant) and `shaders/gather_force.wgsl`, the twins of
-//! [`needlesim_core::models::mls`].
+//! What the continuum models share on the GPU: `shaders/mls.wgsl` (the bindings, the
+//! displacement gradient and the packing of a first pass, which each model's shader
+//! completes with its stress and entry points) and `shaders/gather_force.wgsl`, the twins
+//! of [`needlesim_core::models::mls`].
 
 use super::MATERIAL;
 use crate::buffers::Binding::{self, *};
-use crate::kernels::{KernelSpec, CLUSTER_FRAME, COMMON};
+use crate::kernels::{KernelSpec, COMMON};
 use needlesim_core::models::mls::ContinuumConstants;
 use needlesim_core::models::ShapeArray::{
     FirstPass, InverseMoment, RestPosition, Rotation, ShapeVector,
 };
 
-/// The first-pass shader and the code it includes.
-pub const FIRST_PASS_SOURCES: &[&str] = &[
-    COMMON,
-    CLUSTER_FRAME,
-    include_str!("../../shaders/continuum_first_pass.wgsl"),
-];
+/// The shared first-pass code a model's first-pass shader is appended to.
+pub const MLS: &str = include_str!("../../shaders/mls.wgsl");
 
 /// The first pass's bindings.
 pub const FIRST_PASS: [(u32, Binding); 7] = [

@@ -1,17 +1,24 @@
-//! The Debunne meshfree model on the GPU: the `deb_*` entry points of
-//! `shaders/continuum_first_pass.wgsl` and the shared gather, the twins of
+//! The Debunne meshfree model on the GPU: the first passes of
+//! `shaders/debunne_meshfree.wgsl` and the shared gather, the twins of
 //! [`needlesim_core::models::debunne_meshfree`].
 //!
 //! Mixed and co-rotated, the rotations come first in a pass of their own
 //! ([`FRAME`]), to stay within 8 storage buffers per kernel.
 
 use super::continuum::{
-    write_constants, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_SOURCES, GATHER_FORCE, ROTATION,
-    SHAPE_VECTOR,
+    write_constants, FIRST_PASS, FIRST_PASS_MIXED, GATHER_FORCE, MLS, ROTATION, SHAPE_VECTOR,
 };
 use super::{GpuModel, MATERIAL};
 use crate::buffers::Binding;
-use crate::kernels::KernelSpec;
+use crate::kernels::{KernelSpec, CLUSTER_FRAME, COMMON};
+
+/// The co-rotated entries use the shape matching frame.
+const SOURCES: &[&str] = &[
+    COMMON,
+    CLUSTER_FRAME,
+    MLS,
+    include_str!("../../shaders/debunne_meshfree.wgsl"),
+];
 use needlesim_core::models::debunne_meshfree::{DebunneParams, Shape};
 
 const F: [(u32, Binding); 7] = FIRST_PASS;
@@ -30,48 +37,48 @@ const FRAME_BINDINGS: [(u32, Binding); 7] = [F[0], F[1], F[2], F[3], F[4], SHAPE
 const COROTATED_MIXED_BINDINGS: [(u32, Binding); 9] =
     [F[0], F[1], F[2], F[3], F[4], F[5], F[6], ROTATION, MATERIAL];
 
-/// `continuum_first_pass.wgsl::deb_linear`: the linear stress
+/// `debunne_meshfree.wgsl::deb_linear`: the linear stress
 /// ([`debunne_meshfree::first_pass`] without rotation).
 ///
 /// [`debunne_meshfree::first_pass`]: needlesim_core::models::debunne_meshfree::first_pass
 pub const LINEAR: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/deb_linear",
-    sources: FIRST_PASS_SOURCES,
+    name: "debunne_meshfree/deb_linear",
+    sources: SOURCES,
     entry: "deb_linear",
     bindings: &FIRST_PASS,
 };
 
-/// `continuum_first_pass.wgsl::deb_linear_mixed`: [`LINEAR`] with each node's constants.
+/// `debunne_meshfree.wgsl::deb_linear_mixed`: [`LINEAR`] with each node's constants.
 pub const LINEAR_MIXED: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/deb_linear_mixed",
-    sources: FIRST_PASS_SOURCES,
+    name: "debunne_meshfree/deb_linear_mixed",
+    sources: SOURCES,
     entry: "deb_linear_mixed",
     bindings: &FIRST_PASS_MIXED,
 };
 
-/// `continuum_first_pass.wgsl::deb_corotated`: the shape matching rotation and the
+/// `debunne_meshfree.wgsl::deb_corotated`: the shape matching rotation and the
 /// co-rotated stress in one pass.
 pub const COROTATED: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/deb_corotated",
-    sources: FIRST_PASS_SOURCES,
+    name: "debunne_meshfree/deb_corotated",
+    sources: SOURCES,
     entry: "deb_corotated",
     bindings: &COROTATED_BINDINGS,
 };
 
-/// `continuum_first_pass.wgsl::deb_frame`: the rotations only (before
+/// `debunne_meshfree.wgsl::deb_frame`: the rotations only (before
 /// [`COROTATED_MIXED`]).
 pub const FRAME: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/deb_frame",
-    sources: FIRST_PASS_SOURCES,
+    name: "debunne_meshfree/deb_frame",
+    sources: SOURCES,
     entry: "deb_frame",
     bindings: &FRAME_BINDINGS,
 };
 
-/// `continuum_first_pass.wgsl::deb_corotated_mixed`: the co-rotated stress with each
+/// `debunne_meshfree.wgsl::deb_corotated_mixed`: the co-rotated stress with each
 /// node's constants, reading the rotations [`FRAME`] stored.
 pub const COROTATED_MIXED: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/deb_corotated_mixed",
-    sources: FIRST_PASS_SOURCES,
+    name: "debunne_meshfree/deb_corotated_mixed",
+    sources: SOURCES,
     entry: "deb_corotated_mixed",
     bindings: &COROTATED_MIXED_BINDINGS,
 };

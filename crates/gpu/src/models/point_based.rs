@@ -1,29 +1,29 @@
-//! Point based animation on the GPU: the `pba` entry points of
-//! `shaders/continuum_first_pass.wgsl` and the shared gather, the twins of
+//! Point based animation on the GPU: the first passes of `shaders/point_based.wgsl` and
+//! the shared gather, the twins of
 //! [`needlesim_core::models::point_based`].
 
-use super::continuum::{
-    write_constants, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_SOURCES, GATHER_FORCE,
-};
+use super::continuum::{write_constants, FIRST_PASS, FIRST_PASS_MIXED, GATHER_FORCE, MLS};
 use super::GpuModel;
-use crate::kernels::KernelSpec;
+use crate::kernels::{KernelSpec, COMMON};
+
+const SOURCES: &[&str] = &[COMMON, MLS, include_str!("../../shaders/point_based.wgsl")];
 use needlesim_core::models::point_based::{PointBasedParams, Shape};
 
-/// `continuum_first_pass.wgsl::pba`: the first Piola-Kirchhoff stress of the Green
+/// `point_based.wgsl::pba`: the first Piola-Kirchhoff stress of the Green
 /// strain ([`point_based::first_pass`]).
 ///
 /// [`point_based::first_pass`]: needlesim_core::models::point_based::first_pass
 pub const FIRST: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/pba",
-    sources: FIRST_PASS_SOURCES,
+    name: "point_based/pba",
+    sources: SOURCES,
     entry: "pba",
     bindings: &FIRST_PASS,
 };
 
-/// `continuum_first_pass.wgsl::pba_mixed`: [`FIRST`] with each node's constants.
+/// `point_based.wgsl::pba_mixed`: [`FIRST`] with each node's constants.
 pub const FIRST_MIXED: KernelSpec = KernelSpec {
-    name: "continuum_first_pass/pba_mixed",
-    sources: FIRST_PASS_SOURCES,
+    name: "point_based/pba_mixed",
+    sources: SOURCES,
     entry: "pba_mixed",
     bindings: &FIRST_PASS_MIXED,
 };

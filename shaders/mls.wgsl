@@ -1,0 +1,73 @@
+// The continuum models' shared first-pass code (models/mls.rs): their bindings, the
+// moving-least-squares displacement gradient J_i of node i, and `store`, which packs a
+// stress P_i as [V P A^-1 - c J (9 floats), c, 0, 0] in three vec4 per node for
+// gather_force.wgsl. The node volume V_i is the w lane of its rest position. Each model's
+// shader is composed after this one (and after cluster_frame.wgsl, which reads
+// `shape_vector` and `rotation`) and adds its stress and entry points; the `_mixed` entries
+// take node i's constants from `node_material` (models::material_row).
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> rest: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> nb_index: array<u32>;
+@group(0) @binding(4) var<storage, read> nb_weight: array<f32>;
+@group(0) @binding(5) var<storage, read> inverse_moment: array<f32>;
+@group(0) @binding(6) var<storage, read_write> first_pass: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read> shape_vector: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read_write> rotation: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read> node_material: array<vec4<f32>>;
+
+struct Gradient {
+    j: mat3x3<f32>,
+    trace: f32,
+}
+
+fn a_inv(i: u32) -> mat3x3<f32> {
+    let b = 9u * i;
+    return mat3x3<f32>(
+        vec3<f32>(inverse_moment[b], inverse_moment[b + 1u], inverse_moment[b + 2u]),
+        vec3<f32>(inverse_moment[b + 3u], inverse_moment[b + 4u], inverse_moment[b + 5u]),
+        vec3<f32>(inverse_moment[b + 6u], inverse_moment[b + 7u], inverse_moment[b + 8u]),
+    );
+}
+
+fn gradient(i: u32) -> Gradient {
+    let xi = positions[i].xyz;
+    let x0i = rest[i].xyz;
+    var b = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    var trace = 0.0;
+    for (var s = 0u; s < params.k; s++) {
+        let w = nb_weight[i * params.k + s];
+        if w == 0.0 {
+            continue;
+        }
+        let j = nb_index[i * params.k + s];
+        let d = positions[j].xyz - xi;
+        let d0 = rest[j].xyz - x0i;
+        let du = w * (d - d0);
+        b[0] += du.x * d0;
+        b[1] += du.y * d0;
+        b[2] += du.z * d0;
+        trace += w * dot(d0, d0);
+    }
+    return Gradient(mat_mul(b, a_inv(i)), trace);
+}
+
+fn identity() -> mat3x3<f32> {
+    return mat3x3<f32>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
+}
+
+fn store(i: u32, p: mat3x3<f32>, g: Gradient, vol: f32, hourglass: f32) {
+    let q = mat_mul(p, a_inv(i));
+    var c = 0.0;
+    if g.trace > 0.0 {
+        c = hourglass * vol / g.trace;
+    }
+    let o0 = vol * q[0] - c * g.j[0];
+    let o1 = vol * q[1] - c * g.j[1];
+    let o2 = vol * q[2] - c * g.j[2];
+    first_pass[3u * i] = vec4<f32>(o0, o1.x);
+    first_pass[3u * i + 1u] = vec4<f32>(o1.y, o1.z, o2.x, o2.y);
+    first_pass[3u * i + 2u] = vec4<f32>(o2.z, c, 0.0, 0.0);
+}
+
