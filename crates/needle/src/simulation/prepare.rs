@@ -142,7 +142,8 @@ fn check_start_outside(
     Ok(())
 }
 
-/// Young's modulus and Poisson ratio of `material`, Pa: for mass-spring and shape
+/// Young's modulus and Poisson ratio of `material`, Pa
+/// ([`needlesim_core::models::TissueModel::elastic_moduli`]): for mass-spring and shape
 /// matching, the modulus their calibrated stiffness gives at the mesh spacing `h` and the
 /// Poisson ratio their lattices show (mass-spring about 1/4, cluster shape matching about
 /// 0: docs/report). `key` names the needle table that needs it, for the error when the
@@ -153,8 +154,6 @@ fn resolve_modulus(
     h: f64,
     key: &str,
 ) -> Result<(f64, f64), SceneError> {
-    use needlesim_core::calibration::calibration;
-    let k = scene.tissue.neighbours;
     let uncalibrated = |e: needlesim_core::calibration::UncalibratedNeighbours| {
         SceneError::invalid(
             format!("{key}.grip"),
@@ -164,23 +163,9 @@ fn resolve_modulus(
             ),
         )
     };
-    Ok(match *material {
-        Material::DebunneMeshfree(p) => (p.young_modulus, p.poisson_ratio),
-        Material::PointBased(p) => (p.young_modulus, p.poisson_ratio),
-        Material::MassSpring(p) => {
-            let cal = calibration(k).map_err(uncalibrated)?;
-            (p.stiffness / (cal.mass_spring * h), 0.25)
-        }
-        Material::LocalShapeMatching(p) => {
-            let cal = calibration(k).map_err(uncalibrated)?;
-            let c = if p.forces == needlesim_core::scene::ShapeMatchingForces::Cluster {
-                cal.shape_matching_cluster
-            } else {
-                cal.shape_matching_node
-            };
-            (p.stiffness / (c * h), 0.0)
-        }
-    })
+    material
+        .elastic_moduli(h, scene.tissue.neighbours)
+        .map_err(uncalibrated)
 }
 
 /// The grip per unit length (N/m), the sheath's shear stiffness and viscous coefficient
