@@ -4,6 +4,7 @@
 mod common;
 
 use common::*;
+use needlesim::core::models::neo_hookean::NeoHookeanParams;
 use needlesim::core::models::{mls, point_based};
 use needlesim::core::scene::{
     lame, Axis, DebunneParams, MassSpringParams, NodeSet, NodeVolumes, PointBasedParams,
@@ -27,7 +28,7 @@ fn clamped_bar(material: Material) -> Scene {
         .unwrap()
 }
 
-fn elastic_models() -> [(&'static str, Material); 3] {
+fn elastic_models() -> [(&'static str, Material); 4] {
     [
         ("deb", Material::debunne(E, NU)),
         (
@@ -35,6 +36,7 @@ fn elastic_models() -> [(&'static str, Material); 3] {
             Material::DebunneMeshfree(DebunneParams::new(E, NU).with_corotated(true)),
         ),
         ("pba", Material::point_based(E, NU)),
+        ("nh", Material::NeoHookean(NeoHookeanParams::new(E, NU))),
     ]
 }
 
@@ -292,7 +294,7 @@ fn each_model_allocates_only_its_arrays() {
         "neighbour_index",
         "neighbour_weight",
     ];
-    let expected: [(&str, Material, &[&str]); 6] = [
+    let expected: [(&str, Material, &[&str]); 7] = [
         ("msm", MODELS[0].1, &["rest_length"]),
         (
             "lshm-node",
@@ -328,6 +330,11 @@ fn each_model_allocates_only_its_arrays() {
         (
             "pba",
             MODELS[4].1,
+            &["rest_position", "inverse_moment", "first_pass"],
+        ),
+        (
+            "nh",
+            MODELS[5].1,
             &["rest_position", "inverse_moment", "first_pass"],
         ),
     ];

@@ -40,6 +40,14 @@ fn materials(model: &str) -> (String, [String; 3]) {
                 "young_modulus = 20000.0, poisson_ratio = 0.3",
             ],
         ),
+        "neo_hookean" => (
+            "model = \"neo_hookean\"\nyoung_modulus = 20000.0\npoisson_ratio = 0.3\nhourglass = 4.0",
+            [
+                "young_modulus = 30000.0, poisson_ratio = 0.3",
+                "young_modulus = 8000.0, poisson_ratio = 0.3",
+                "young_modulus = 20000.0, poisson_ratio = 0.3",
+            ],
+        ),
         _ => (
             "model = \"debunne_meshfree\"\nyoung_modulus = 20000.0\npoisson_ratio = 0.3\ncorotated = true\nhourglass = 4.0",
             [
@@ -433,12 +441,13 @@ fn regions_of_one_material_allocate_nothing_and_change_nothing() {
     assert_eq!(run(plain), run(&with));
 }
 
-/// The four models.
-const ALL_MODELS: [&str; 4] = [
+/// Every model.
+const ALL_MODELS: [&str; 5] = [
     "mass_spring",
     "local_shape_matching",
     "point_based",
     "debunne_meshfree",
+    "neo_hookean",
 ];
 
 /// Every model, two insert / hold / extract cycles through the three layers (membranes of

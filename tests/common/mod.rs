@@ -1,5 +1,6 @@
 #![allow(dead_code)]
 use needlesim::core::geometry;
+use needlesim::core::models::neo_hookean::NeoHookeanParams;
 use needlesim::core::scene::{
     DebunneParams, MassSpringParams, ShapeMatchingForces, ShapeMatchingParams,
 };
@@ -8,7 +9,7 @@ use needlesim::needle::{NeedleSample, Simulation};
 use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, Threading, Tissue};
 
 /// The rotation-invariant force models under test: (label, material).
-pub const MODELS: [(&str, Material); 5] = [
+pub const MODELS: [(&str, Material); 6] = [
     (
         "msm",
         Material::MassSpring(MassSpringParams::new(100.0).with_spring_damping(0.0)),
@@ -30,6 +31,7 @@ pub const MODELS: [(&str, Material); 5] = [
         Material::DebunneMeshfree(DebunneParams::new(1e4, 0.3).with_corotated(true)),
     ),
     ("pba", Material::point_based(1e4, 0.3)),
+    ("nh", Material::NeoHookean(NeoHookeanParams::new(1e4, 0.3))),
 ];
 
 /// The plain (linear, not co-rotated) Debunne model: not rotation invariant.

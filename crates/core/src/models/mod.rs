@@ -28,6 +28,7 @@ pub mod local_shape_matching;
 pub mod mass_spring;
 pub mod mls;
 pub mod mueller2016_rotation;
+pub mod neo_hookean;
 pub mod point_based;
 
 mod traits;
@@ -61,6 +62,8 @@ macro_rules! for_each_model {
             /// `model = "point_based"`: point based animation (Mueller et al. 2004), Green
             /// strain from a moving-least-squares displacement gradient.
             PointBased($crate::models::point_based::PointBasedParams),
+            /// `model = "neo_hookean"`: compressible neo-Hookean solid for large strains.
+            NeoHookean($crate::models::neo_hookean::NeoHookeanParams),
         }
     };
 }

@@ -7,6 +7,7 @@ mod continuum;
 mod debunne_meshfree;
 mod local_shape_matching;
 mod mass_spring;
+mod neo_hookean;
 mod point_based;
 
 use crate::buffers::{Binding, Buffers};

@@ -1,0 +1,41 @@
+// First pass of the compressible neo-Hookean model (models/neo_hookean.rs), composed after
+// mls.wgsl: P = mu F + (lambda l(J) - mu) l'(J) cof(F) of F = I + J_i, with l(J) = ln J
+// continued by its tangent below J_MIN. Constants from the uniform parameters
+// (`neo_hookean`) or node i's own [lambda, mu, 0, alpha mu] (`neo_hookean_mixed`).
+
+const J_MIN: f32 = 0.05;
+
+fn neo_hookean_node(i: u32, lambda: f32, mu: f32, hourglass: f32) {
+    let g = gradient(i);
+    let f = g.j + identity();
+    // Rows of the cofactor matrix (these matrices hold rows in their columns).
+    let cof = mat3x3<f32>(cross(f[1], f[2]), cross(f[2], f[0]), cross(f[0], f[1]));
+    let det = dot(f[0], cof[0]);
+    var l = log(J_MIN) + (det - J_MIN) / J_MIN;
+    var dl = 1.0 / J_MIN;
+    if det >= J_MIN {
+        l = log(det);
+        dl = 1.0 / det;
+    }
+    let p = mu * f + ((lambda * l - mu) * dl) * cof;
+    store(i, p, g, rest[i].w, hourglass);
+}
+
+@compute @workgroup_size(64)
+fn neo_hookean(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    neo_hookean_node(i, params.lambda, params.mu, params.hourglass);
+}
+
+@compute @workgroup_size(64)
+fn neo_hookean_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    let m = node_material[i];
+    neo_hookean_node(i, m.x, m.y, m.w);
+}
