@@ -2,7 +2,7 @@
 //! density times volume, and a stable step that follows the spacing.
 
 use needlesim::core::geometry::{self, obj::Surface, resample, shapes};
-use needlesim::core::scene::{Geometry, NodeMasses, ObjGeometry, SurfaceNodes};
+use needlesim::core::scene::{Geometry, NodeMasses, SurfaceGeometry, SurfaceNodes};
 use needlesim::{Material, Scene, Tissue};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -126,23 +126,25 @@ fn total_mass_is_density_times_volume_for_every_geometry_kind() {
         ("box, nodes", Geometry::box_with_nodes(lo, hi, 300)),
         (
             "obj ball.obj",
-            Geometry::Obj(ObjGeometry::new("ball.obj", 0.012)),
+            Geometry::Obj(SurfaceGeometry::new("ball.obj", 0.012)),
         ),
         (
             "obj ball.obj, surface vertices",
-            Geometry::Obj(ObjGeometry::new("ball.obj", 0.012).with_surface(SurfaceNodes::Vertices)),
+            Geometry::Obj(
+                SurfaceGeometry::new("ball.obj", 0.012).with_surface(SurfaceNodes::Vertices),
+            ),
         ),
         (
             "stl ball.stl",
-            Geometry::Stl(ObjGeometry::new("ball.stl", 0.012)),
+            Geometry::Stl(SurfaceGeometry::new("ball.stl", 0.012)),
         ),
         (
             "vtk ball.vtk",
-            Geometry::Vtk(ObjGeometry::new("ball.vtk", 0.012)),
+            Geometry::Vtk(SurfaceGeometry::new("ball.vtk", 0.012)),
         ),
         (
             "vtk ball.vtu",
-            Geometry::Vtk(ObjGeometry::new("ball.vtu", 0.012)),
+            Geometry::Vtk(SurfaceGeometry::new("ball.vtu", 0.012)),
         ),
     ];
     for (kind, geometry) in &kinds {
@@ -284,7 +286,7 @@ fn bad_vtk_files_are_rejected_with_the_reason() {
         ("absent.vtp", "cannot load"),
     ] {
         let err = Scene::builder()
-            .geometry(Geometry::Vtk(ObjGeometry::new(file, 0.01)))
+            .geometry(Geometry::Vtk(SurfaceGeometry::new(file, 0.01)))
             .material(DEB)
             .base_dir(d)
             .build()
@@ -305,7 +307,7 @@ fn a_unit_mistake_is_caught_before_allocating() {
         &shapes::icosphere([0.0; 3], 50.0, 2),
     );
     let scene = Scene::builder()
-        .obj(ObjGeometry::new("mm.obj", 0.005))
+        .obj(SurfaceGeometry::new("mm.obj", 0.005))
         .material(DEB)
         .base_dir(dir.path())
         .build()
@@ -334,8 +336,8 @@ fn surface_files_can_be_rotated_and_translated() {
     // Not a divisor of the radius: no lattice point lies exactly on the surface, where
     // the shifted lattice's rounding could flip an inside test.
     let h = 0.0047;
-    let base = ObjGeometry::new("cap.obj", h).with_scale(0.001);
-    let obj = |g: ObjGeometry| scene(Geometry::Obj(g), NodeMasses::Cell, dir.path());
+    let base = SurfaceGeometry::new("cap.obj", h).with_scale(0.001);
+    let obj = |g: SurfaceGeometry| scene(Geometry::Obj(g), NodeMasses::Cell, dir.path());
     let plain = obj(base.clone());
     let shifted = obj(base.clone().with_translate([0.5, -0.25, 1.0]));
     let moved = obj(base
