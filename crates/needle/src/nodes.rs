@@ -30,7 +30,7 @@ pub struct NeedleNode {
     /// Axial force the needle exerted on the node in the last step, N, positive along the
     /// needle direction: its friction (with the paper's model, also the cutting force at
     /// the crack front; with the per-length model the cutting force is the front
-    /// element's, [`crate::Simulation::front_force`]).
+    /// element's, [`crate::sheath::FrontElement`]).
     pub axial: f64,
     /// The friction limit in the last step (per-length model: the Coulomb cap of the
     /// node's sheath, [`crate::sheath`]), N.
