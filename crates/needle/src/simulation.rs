@@ -41,9 +41,11 @@
 
 mod constraint;
 mod insertion;
+mod inside;
 mod needle_force;
 mod prepare;
 mod settle;
+mod shaft_loads;
 mod snapshot;
 
 pub use insertion::MAX_STEP_SPACINGS;

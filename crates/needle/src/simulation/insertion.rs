@@ -29,11 +29,10 @@ use crate::needle::Needle;
 use crate::node_editor::{EditError, Placement};
 use crate::nodes::{NeedleNode, NodeRole};
 use crate::puncture::{mean_cone_angle, TouchingOutcome};
-use crate::sheath::{self, FieldPoint, Patch, Tear};
+use crate::sheath::{self, Patch, Tear};
 use crate::state::Phase;
 use crate::SimulationError;
 use glam::DVec3;
-use needlesim_core::math::Vec4;
 use needlesim_core::NodeField;
 
 /// Most needle node spacings a needle point may move in one step while in contact.
@@ -42,17 +41,6 @@ use needlesim_core::NodeField;
 /// whole body within the Touching phase and nodes were placed past the far surface until
 /// the slots ran out. A haptic pose glitch is usually far larger.
 pub const MAX_STEP_SPACINGS: f64 = 4.0;
-
-/// The shaft's friction before an edit ([`Simulation::reassign_friction`]).
-#[derive(Debug, Default)]
-struct FrictionField {
-    /// Loads per unit length ([`FieldPoint::per_length`]) of every node in stack order.
-    per_node: Vec<[f64; sheath::FIELD]>,
-    /// The same at the nodes with a shaft length, sorted along the needle.
-    points: Vec<FieldPoint>,
-    /// Summed loads, N.
-    total: [f64; sheath::FIELD],
-}
 
 /// The next edit of the needle node stack while Inside.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -102,7 +90,7 @@ pub(crate) fn shaft_edit(has_tip: bool, last: NodeRole, d: f64, h: f64) -> Shaft
 }
 
 impl Simulation {
-    fn add(
+    pub(super) fn add(
         &mut self,
         role: NodeRole,
         x: DVec3,
@@ -115,7 +103,7 @@ impl Simulation {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn add_placed(
+    pub(super) fn add_placed(
         &mut self,
         role: NodeRole,
         x: DVec3,
@@ -152,7 +140,7 @@ impl Simulation {
     }
 
     /// Removes the newest needle node; removing the Surface or Exit node undoes its split.
-    fn remove(&mut self) -> Result<NeedleNode, EditError> {
+    pub(super) fn remove(&mut self) -> Result<NeedleNode, EditError> {
         self.editor.remove_last(self.backend.as_mut())?;
         let node = self.state.nodes.pop().ok_or(EditError::NothingToRemove)?;
         self.low_water = self.low_water.min(self.state.nodes.len());
@@ -177,7 +165,7 @@ impl Simulation {
 
     /// Adds the Surface or Exit node at `point` on surface triangle `id`, pinned to the
     /// needle (sticking), and splits the triangle around it.
-    fn pin_at_surface(
+    pub(super) fn pin_at_surface(
         &mut self,
         role: NodeRole,
         id: usize,
@@ -300,7 +288,7 @@ impl Simulation {
 
     /// The first surface triangle the segment `p0 -> p1` crosses, entering or leaving,
     /// ignoring the triangles around needle nodes.
-    fn surface_crossing(
+    pub(super) fn surface_crossing(
         &mut self,
         p0: DVec3,
         p1: DVec3,
@@ -509,415 +497,6 @@ impl Simulation {
             self.state.read_velocities = read.velocities;
         }
         Ok(())
-    }
-
-    /// Inside: keep a Shaft node per spacing and the Tip node at the tip; detect the far
-    /// surface.
-    fn inside(&mut self, now: &Needle, v_tip: DVec3) -> Result<(), SimulationError> {
-        let (t, tip, h) = (
-            DVec3::from(now.direction()),
-            DVec3::from(now.tip()),
-            self.spacing,
-        );
-        let base = DVec3::from(now.base());
-        // Advancing: the tip moved forward along the needle this step (by more than
-        // rounding: a rotation about the entry point moves it sideways only).
-        let advancing = self.state.advance > 1e-12;
-        let per_length = self.contact.per_length().is_some();
-        let sheathed = self.sheathed();
-        // The far-side test for the needle nodes as they are: the corners of its candidate
-        // triangles come back with the nodes' positions and velocities in one readback.
-        // Both serve below while no edit changes the nodes (or the split triangles).
-        let prev_tip = DVec3::from(self.state.swept_from);
-        let query = match advancing {
-            true => {
-                let skip: Vec<u32> = self.state.nodes.iter().map(|n| n.index).collect();
-                let (p0, p1) = (prev_tip.to_array(), tip.to_array());
-                self.state.surface.crossing_query(p0, p1, false, &skip)
-            }
-            false => None,
-        };
-        let corners = query.as_ref().map_or(&[][..], |q| &q.corners[..]);
-        let read = self.read_needle(corners).map_err(|e| self.edit(e.into()))?;
-        let mut pos = read.positions;
-        // The shaft's friction before any edit, to carry over to the nodes after them.
-        let field = self.friction_field(&pos, now);
-        self.low_water = self.state.nodes.len();
-        // A Tip node taken off for being ahead of the tip this step.
-        let mut dropped_ahead = false;
-        let denting_membrane = sheathed && self.state.denting.is_some();
-        // The velocities read, until the first edit.
-        let mut known = Some(read.velocities);
-        let mut edited = false;
-        let mut carried = None;
-        let seeds = |nodes: &[NeedleNode]| -> Vec<u32> {
-            nodes.iter().rev().take(2).map(|n| n.index).collect()
-        };
-        loop {
-            let nodes = &self.state.nodes;
-            let has_tip = nodes.last().is_some_and(|n| n.role == NodeRole::Tip);
-            let last = nodes.len() - 1 - has_tip as usize;
-            let role = nodes[last].role;
-            let d = (tip - pos[last]).dot(t);
-            // A node farther ahead than the needle may move in a step is a sign of a
-            // diverging run: the divergence guard is asked first, so that a divergence is
-            // reported as one.
-            let lost = |sim: &mut Self, ahead: f64| match sim.check() {
-                Err(e) if ahead > MAX_STEP_SPACINGS * h => e,
-                _ => SimulationError::NodesLost {
-                    step: sim.stepper.steps(),
-                    node: sim.state.nodes[last].index,
-                    role,
-                    ahead,
-                },
-            };
-            // A Shaft node the tissue has crowded onto the node behind it (within h / 4
-            // along the shaft: the shaft behind a dented membrane, compressed along it)
-            // is taken off; the rules re-add one h past the node behind if the tip is far
-            // enough. Coincident nodes would leave the meshfree neighbourhoods singular.
-            let crowded = role == NodeRole::Shaft
-                && last > 0
-                && (pos[last] - pos[last - 1]).dot(t) < 0.25 * h;
-            // With the per-length model the Tip node marks the crack front: it is taken
-            // off (and not put back) once the needle is pulled back behind it, and put on
-            // again only when the needle advances.
-            // A Tip node the tissue has carried more than two refresh distances ahead of
-            // the advancing tip (springing back after a puncture; the tip's push is off
-            // from there, [`Simulation::front_step`]) holds no crack front: it is taken off,
-            // and put on at the tip again from the next step.
-            let ahead = sheathed
-                && has_tip
-                && advancing
-                && (pos[nodes.len() - 1] - base).dot(t) > now.length() + 2.0 * self.contact.refresh;
-            let behind = sheathed
-                && has_tip
-                && ((!advancing && nodes[nodes.len() - 1].share == 0.0) || ahead);
-            // With the per-length model a Shaft node the tip is pulled back over is
-            // removed once it has handed its shaft length over (its share is 0), or once
-            // the tip is behind it.
-            let d_edit = match sheathed && role == NodeRole::Shaft && nodes[last].share > 0.0 {
-                true if d >= 0.0 => d.max(REMOVE * h),
-                _ => d,
-            };
-            let edit = match (crowded, has_tip) {
-                (true, true) => ShaftEdit::LiftTip,
-                (true, false) => ShaftEdit::RemoveShaft,
-                (false, _) if behind => ShaftEdit::LiftTip,
-                // While the Tip node dents an inner membrane it stays where the membrane
-                // holds it (behind the tip by the dent): no Shaft node goes in behind it
-                // until the membrane gives.
-                (false, true) if denting_membrane && d >= 1.5 * h => ShaftEdit::Keep,
-                (false, _) => match shaft_edit(has_tip, role, d_edit, h) {
-                    ShaftEdit::AddTip | ShaftEdit::AddShaft if sheathed && !advancing => {
-                        ShaftEdit::Keep
-                    }
-                    ShaftEdit::AddTip if dropped_ahead => ShaftEdit::Keep,
-                    e => e,
-                },
-            };
-            match edit {
-                ShaftEdit::LiftTip if behind => {
-                    self.remove().map_err(|e| self.edit(e))?;
-                    pos.pop();
-                    dropped_ahead = ahead;
-                }
-                ShaftEdit::LiftTip => {
-                    // Taken off to edit the shaft behind it: re-added below with its load.
-                    if carried.is_none() {
-                        carried = Some(self.tip_load(known.as_deref(), tip)?);
-                    }
-                    self.remove().map_err(|e| self.edit(e))?;
-                    pos.pop();
-                }
-                ShaftEdit::RemoveShaft => {
-                    // A node up to h / 2 past the tip was carried there by the tissue
-                    // springing back over the tip (a membrane just punctured): removed,
-                    // as any node closer than h / 2. Farther, the shaft lost its grip.
-                    if advancing && d < -0.5 * h {
-                        return Err(lost(self, -d));
-                    }
-                    self.remove().map_err(|e| self.edit(e))?;
-                    pos.pop();
-                }
-                ShaftEdit::AddShaft => {
-                    let s = (pos[last] - base).dot(t) + h;
-                    let x = at(now, s);
-                    let (v, state) = self.new_node_motion(has_tip, v_tip, known.as_deref())?;
-                    let sd = seeds(&self.state.nodes);
-                    // On the track between the last node and the material at the tip
-                    // when the Tip node was lifted for this (the shaft behind
-                    // a tip denting a membrane runs through tissue compressed and
-                    // stretched along it, where the editor's rigid fit can put the node at
-                    // rest past the tip); else the editor's fit (paper section 5.1).
-                    let placement = match carried {
-                        Some((_, _, Placement::Rest(front))) => {
-                            let r_last = DVec3::from(self.rest_of(self.state.nodes[last].index));
-                            let along = (s - (pos[last] - base).dot(t))
-                                / (now.length() - (pos[last] - base).dot(t));
-                            let r = r_last + (DVec3::from(front) - r_last) * along.clamp(0.0, 1.0);
-                            Placement::Rest(r.to_array())
-                        }
-                        _ => Placement::Offset([0.0; 3]),
-                    };
-                    self.add_placed(NodeRole::Shaft, x, s, &sd, v, state, placement)
-                        .map_err(|e| self.edit(e))?;
-                    pos.push(x);
-                }
-                ShaftEdit::AddTip => {
-                    let sd = seeds(&self.state.nodes);
-                    let (state, v, placement) = match carried.take() {
-                        Some(load) => load,
-                        // The first Tip node takes over the crack front from the deepest
-                        // node: it strains the tissue ahead as that node did.
-                        None if per_length => {
-                            let front = self.state.nodes[last].index;
-                            let o = self
-                                .editor
-                                .elastic_offset(self.backend.as_mut(), front)
-                                .map_err(|e| self.edit(e))?;
-                            (FrictionState::Slip, v_tip, Placement::Offset(o))
-                        }
-                        None => (FrictionState::Stick, v_tip, Placement::Offset([0.0; 3])),
-                    };
-                    self.add_placed(NodeRole::Tip, tip, now.length(), &sd, v, state, placement)
-                        .map_err(|e| self.edit(e))?;
-                    pos.push(tip);
-                    self.state.tip_placed = tip.to_array();
-                }
-                // The Surface node a little ahead of an advancing tip (the entry surface
-                // springing back after the puncture) stays; more than h / 2 ahead, the
-                // shaft lost its grip.
-                ShaftEdit::LeaveSurface if advancing && d >= -0.5 * h => break,
-                ShaftEdit::LeaveSurface => {
-                    if advancing {
-                        return Err(lost(self, -d));
-                    }
-                    self.remove().map_err(|e| self.edit(e))?;
-                    return Ok(());
-                }
-                ShaftEdit::Keep => break,
-            }
-            edited = true;
-            known = None;
-        }
-        let has_tip = self
-            .state
-            .nodes
-            .last()
-            .is_some_and(|n| n.role == NodeRole::Tip);
-        // How far the Tip node is from the tip: with the per-length model, how far the tip
-        // has cut past it along the needle (turning the needle sideways carries the Tip
-        // node with it and cuts nothing); with the paper's, since placed.
-        let moved = match (self.sheathed(), pos.last()) {
-            (true, Some(x)) => now.length() - (*x - base).dot(t),
-            _ => (tip - DVec3::from(self.state.tip_placed)).length(),
-        };
-        // (With the per-length model only while the tip advances: a Tip node the tissue
-        // pushes back along a needle that turns or stands cuts nothing new.)
-        // (Nor while the Tip node dents an inner membrane: it is the membrane the tip
-        // presses on, not tissue the tip cuts.)
-        let denting = sheathed && self.state.denting.is_some();
-        if has_tip
-            && !edited
-            && moved > self.contact.refresh
-            && (advancing || !sheathed)
-            && !denting
-        {
-            // The refreshed Tip node keeps the load it carried: its friction state and,
-            // with the per-length model, the tissue's velocity and the material at the
-            // tip, so the load ahead of the tip is carried on, not released.
-            let (state, v, placement) = self.tip_load(known.take().as_deref(), tip)?;
-            edited = true;
-            let v = if per_length { v } else { v_tip };
-            let sd = seeds(&self.state.nodes);
-            self.remove().map_err(|e| self.edit(e))?;
-            self.add_placed(NodeRole::Tip, tip, now.length(), &sd, v, state, placement)
-                .map_err(|e| self.edit(e))?;
-            self.state.tip_placed = tip.to_array();
-            pos.pop();
-            pos.push(tip);
-        }
-        // The far side: the tip leaving the body through a surface triangle.
-        if advancing {
-            let hit = match (edited, &query) {
-                (true, _) => self.surface_crossing(prev_tip, tip, false)?,
-                (false, Some(q)) => self
-                    .state
-                    .surface
-                    .crossing_at(q, &read.extra)
-                    .map(|(id, p)| (id, DVec3::from(p))),
-                (false, None) => None,
-            };
-            if let Some((id, point)) = hit {
-                known = None;
-                if self
-                    .state
-                    .nodes
-                    .last()
-                    .is_some_and(|n| n.role == NodeRole::Tip)
-                {
-                    self.remove().map_err(|e| self.edit(e))?;
-                    pos.pop();
-                }
-                self.pin_at_surface(NodeRole::Exit, id, point, now, v_tip)?;
-                pos.push(point);
-                self.state.phase = Phase::ExitTouching;
-            }
-        }
-        if edited && self.sheathed() {
-            self.reassign_friction(&field, &pos, now);
-            // The new nodes are placed in equilibrium.
-            self.settle(self.low_water, now, &pos)?;
-        }
-        // What the needle nodes' positions (and, without edits, velocities) are now, so
-        // that `constrain` need not read them back again.
-        self.state.positions = pos.iter().map(|x| vec4(*x, 0.0)).collect();
-        self.state.read_velocities = known.unwrap_or_default();
-        Ok(())
-    }
-
-    /// The shaft's loads as a field before an edit (nodes at positions `pos`, needle
-    /// `now`): friction and normal force per length.
-    fn friction_field(&self, pos: &[DVec3], now: &Needle) -> FrictionField {
-        let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
-        let s: Vec<f64> = pos.iter().map(|x| (*x - base).dot(t)).collect();
-        let l = self.node_lengths(&s, now);
-        let mut field = FrictionField::default();
-        for (k, n) in self.state.nodes.iter().enumerate() {
-            let loads = [
-                n.axial,
-                n.circumferential,
-                n.normal[0],
-                n.normal[1],
-                n.normal[2],
-            ];
-            for (t, x) in field.total.iter_mut().zip(loads) {
-                *t += x;
-            }
-            let per = match l[k] > 0.0 {
-                true => loads.map(|x| x / l[k]),
-                false => [0.0; sheath::FIELD],
-            };
-            field.per_node.push(per);
-            if l[k] > 0.0 {
-                field.points.push(FieldPoint {
-                    s: s[k],
-                    per_length: per,
-                });
-            }
-        }
-        field.points.sort_by(|a, b| a.s.total_cmp(&b.s));
-        field
-    }
-
-    /// Gives the needle nodes after an edit the loads of the field before it
-    /// ([`sheath::reassign`]): the nodes below the edit's low-water mark keep their loads
-    /// per length, the others take the field's value at their place, and the totals stay.
-    /// The friction is the new nodes' sheath state; the normal force is what they are
-    /// settled to ([`Simulation::settle`]).
-    fn reassign_friction(&mut self, field: &FrictionField, pos: &[DVec3], now: &Needle) {
-        let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
-        let s: Vec<f64> = pos.iter().map(|x| (*x - base).dot(t)).collect();
-        let l = self.node_lengths(&s, now);
-        let own: Vec<Option<[f64; sheath::FIELD]>> = (0..s.len())
-            .map(|k| (k < self.low_water).then(|| field.per_node[k]))
-            .collect();
-        let loads = sheath::reassign(&field.points, field.total, &s, &l, &own);
-        for (k, (n, f)) in self.state.nodes.iter_mut().zip(loads).enumerate() {
-            n.axial = f[0];
-            n.circumferential = f[1];
-            if k >= self.low_water {
-                n.normal = [f[2], f[3], f[4]];
-            }
-        }
-    }
-
-    /// What the Tip node (the last node) carries into its replacement at `tip`: its
-    /// friction state, velocity and, with the per-length model, the material at the tip.
-    /// The replacement's rest position is the old node's, moved by the local affine map
-    /// ([`crate::material_point`]) over the way from where the old node would be at the
-    /// end of the step to `tip` (nothing while it sticks to the needle). When that way is
-    /// longer than half a node spacing (a needle jerked through the tissue), the map is
-    /// not trusted so far: the replacement strains the tissue around it as the old one
-    /// did (its elastic offset). The paper's refresh places it strain-free.
-    /// `known`: the needle nodes' velocities, if read since the last edit.
-    fn tip_load(
-        &mut self,
-        known: Option<&[Vec4]>,
-        tip: DVec3,
-    ) -> Result<(FrictionState, DVec3, Placement), SimulationError> {
-        let k = self.state.nodes.len() - 1;
-        let state = self.state.nodes[k].friction;
-        let v = self
-            .node_velocity(k, known)
-            .map_err(|e| self.edit(e.into()))?;
-        if self.contact.per_length().is_none() {
-            return Ok((state, v, Placement::Offset([0.0; 3])));
-        }
-        let index = self.state.nodes[k].index;
-        let mut nodes = self.mesh_neighbours(index);
-        nodes.push(index);
-        let mut pos = vec![[0.0f32; 4]; nodes.len()];
-        let mut vel = vec![[0.0f32; 4]; nodes.len()];
-        self.backend
-            .read_many(
-                &[
-                    (NodeField::Position, nodes.as_slice().into()),
-                    (NodeField::Velocity, nodes.as_slice().into()),
-                ],
-                &mut [&mut pos, &mut vel],
-            )
-            .map_err(|e| self.edit(e.into()))?;
-        // The replacement moves with the tissue around it (the mean of its mesh
-        // neighbours), not with whatever speed the old node had along the shaft.
-        vel.pop();
-        let v = match vel.is_empty() {
-            true => v,
-            false => vel.iter().map(|x| xyz(*x)).sum::<DVec3>() / vel.len() as f64,
-        };
-        let x_old = xyz(pos.pop().expect("the Tip node"));
-        nodes.pop();
-        let fit = self.fit_around(x_old, &nodes, &pos);
-        let placement = match fit {
-            Some(fit) if (tip - x_old).length() <= 0.5 * self.spacing => {
-                let rest = DVec3::from(self.rest_of(index)) + fit.gradient * (tip - x_old);
-                Placement::Rest(rest.to_array())
-            }
-            _ => Placement::Offset(
-                self.editor
-                    .elastic_offset(self.backend.as_mut(), index)
-                    .map_err(|e| self.edit(e))?,
-            ),
-        };
-        Ok((state, v, placement))
-    }
-
-    /// Velocity and friction state of a Shaft node added inside: with the per-length
-    /// model, the tissue's velocity there (the mean of the last node's mesh neighbours)
-    /// and slipping; with the paper's, the needle's and sticking. `known`: the needle nodes' velocities, if read
-    /// since the last edit.
-    fn new_node_motion(
-        &mut self,
-        has_tip: bool,
-        v_tip: DVec3,
-        known: Option<&[Vec4]>,
-    ) -> Result<(DVec3, FrictionState), SimulationError> {
-        if self.contact.per_length().is_none() {
-            return Ok((v_tip, FrictionState::Stick));
-        }
-        // The tissue's velocity around the last node (the mean of its mesh neighbours).
-        let _ = (has_tip, known);
-        let last = self.state.nodes.last().expect("a needle node").index;
-        let nodes = self.mesh_neighbours(last);
-        if nodes.is_empty() {
-            return Ok((v_tip, FrictionState::Slip));
-        }
-        let mut vel = vec![[0.0f32; 4]; nodes.len()];
-        self.backend
-            .read_nodes(NodeField::Velocity, &nodes, &mut vel)
-            .map_err(|e| self.edit(e.into()))?;
-        let v = vel.iter().map(|x| xyz(*x)).sum::<DVec3>() / vel.len() as f64;
-        Ok((v, FrictionState::Slip))
     }
 }
 
