@@ -261,7 +261,7 @@ impl NeedleConfig {
         Ok(())
     }
 
-    /// Contact radius before puncture (m): `contact_radius`, or the needle's radius.
+    /// NeedleParams radius before puncture (m): `contact_radius`, or the needle's radius.
     pub fn contact_radius(&self) -> f64 {
         self.contact_radius.unwrap_or(self.radius)
     }

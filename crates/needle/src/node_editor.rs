@@ -261,14 +261,14 @@ impl NodeEditor {
             return Ok([0.0; 3]);
         }
         let members: Vec<(u32, Vec4)> = nodes.into_iter().zip(pos).collect();
-        let (c, c0, rot, _) = self.frame(&members);
+        let (c, c0, rot, _) = self.rigid_fit(&members);
         let d0 = dvec3(self.rest[i as usize]) - c0;
         Ok((dvec3(xi) - c - rot * d0).to_array())
     }
 
     /// Centroids (current, rest) of `members` (index, current position) and the rotation
     /// of the polar decomposition of `sum (x_j - C)(x0_j - C0)^T` (matrix and quaternion).
-    fn frame(&self, members: &[(u32, Vec4)]) -> (DVec3, DVec3, DMat3, Vec4) {
+    fn rigid_fit(&self, members: &[(u32, Vec4)]) -> (DVec3, DVec3, DMat3, Vec4) {
         let m = members.len() as f64;
         let (mut c, mut c0) = (DVec3::ZERO, DVec3::ZERO);
         for (j, p) in members {
@@ -354,7 +354,7 @@ impl NodeEditor {
 
         // Steps 2 and 3: rotation of the neighbourhood, shape vector, rest position.
         let members: Vec<(u32, Vec4)> = near.iter().map(|(_, j, p)| (*j, *p)).collect();
-        let (c, c0, rot, q) = self.frame(&members);
+        let (c, c0, rot, q) = self.rigid_fit(&members);
         let x0: Vec4 = match placement {
             Placement::Offset(offset) => {
                 let d = Vec3::from_array(x).as_dvec3() - c - DVec3::from_array(offset);

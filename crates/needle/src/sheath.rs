@@ -44,7 +44,7 @@
 //!   tissue it has not cut; the force builds up over one needle radius of advance
 //!   (stiffness `F_c / a`: the crack-tip process zone is of the size of the tip) and
 //!   unloads elastically when the needle stops or turns back. It never pulls.
-//! - **Contact before puncture** ([`Patch`]): the tip's load on an intact surface goes
+//! - **NeedleParams before puncture** ([`Patch`]): the tip's load on an intact surface goes
 //!   into a contact of radius `R_c` (`contact_radius`, by default the needle's radius; a
 //!   capsule or skin under tension spreads it further). Its compliance is that of a rigid
 //!   flat punch on an elastic half-space (Sneddon 1965, Int J Eng Sci 3:47-57):

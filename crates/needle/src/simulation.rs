@@ -59,7 +59,7 @@ use crate::node_editor::{EditError, NodeEditor};
 use crate::nodes::{NeedleForce, NeedleNode, NeedleSample};
 use crate::puncture::{PunctureState, Thresholds};
 use crate::script::PoseScript;
-use crate::state::{NeedleState, Phase};
+use crate::state::{NeedleState, Passage};
 use crate::SimulationError;
 use glam::DVec3;
 use needlesim_core::boundary::{Boundary, Reaction};
@@ -68,7 +68,7 @@ use needlesim_core::{Backend, NodeField, SimError, Stepper};
 
 /// The needle's parameters in one tissue region, resolved from the scene.
 #[derive(Debug, Clone, Copy)]
-struct Layer {
+struct RegionParams {
     friction: FrictionModel,
     /// Grip of the per-length model, N/m.
     grip: f64,
@@ -86,11 +86,11 @@ struct Layer {
 
 /// The needle parameters a step uses, resolved from the scene.
 #[derive(Debug, Clone)]
-struct Contact {
+struct NeedleParams {
     /// The `[needle]` table's friction model (per-length or the paper's, for all regions).
     friction: FrictionModel,
     /// Per region (region 0 first): friction, grip, cutting force and membrane.
-    layers: Vec<Layer>,
+    regions: Vec<RegionParams>,
     thresholds: Thresholds,
     puncture_force: Option<f64>,
     /// Tip travel between two Tip node refreshes, m.
@@ -104,7 +104,7 @@ struct Contact {
     tear_time: f64,
 }
 
-impl Contact {
+impl NeedleParams {
     fn per_length(&self) -> Option<PerLengthFriction> {
         match self.friction {
             FrictionModel::PerLength(p) => Some(p),
@@ -119,7 +119,7 @@ pub struct Simulation {
     stepper: Stepper,
     editor: NodeEditor,
     script: Option<PoseScript>,
-    contact: Contact,
+    params: NeedleParams,
     /// Node-adding threshold h, m.
     spacing: f64,
     /// Rest positions of the mesh nodes, m.
@@ -209,7 +209,7 @@ impl Simulation {
     pub fn state(&self) -> PunctureState {
         match (self.state.phase, self.state.denting) {
             // Denting an inner membrane: pressing on it, not through.
-            (Phase::Inside, Some(_)) => PunctureState::Touching,
+            (Passage::Inside, Some(_)) => PunctureState::Touching,
             _ => self.state.puncture_state(),
         }
     }
@@ -217,18 +217,18 @@ impl Simulation {
     /// Whether the tip has left the body through its far surface (state Outside with the
     /// shaft inside) or is denting it from inside (Touching).
     pub fn through_far_side(&self) -> bool {
-        matches!(self.state.phase, Phase::ExitTouching | Phase::Exited)
+        matches!(self.state.phase, Passage::ExitTouching | Passage::Exited)
     }
 
     /// The grip per unit length of the per-length friction model in region 0, N/m (0 for
     /// the paper's); [`Simulation::region_grip`] for the others.
     pub fn grip(&self) -> f64 {
-        self.contact.layers[0].grip
+        self.params.regions[0].grip
     }
 
     /// The grip per unit length in region `region`, N/m (`None` for an unknown region).
     pub fn region_grip(&self, region: u16) -> Option<f64> {
-        self.contact.layers.get(region as usize).map(|l| l.grip)
+        self.params.regions.get(region as usize).map(|l| l.grip)
     }
 
     /// The region of every mesh node (an index into [`Simulation::region_names`]).
@@ -245,7 +245,7 @@ impl Simulation {
     /// the tip is pulled back to; `None` while the tip is not inside.
     pub fn tip_region(&self) -> Option<u16> {
         match self.state.phase {
-            Phase::Inside => self.state.region,
+            Passage::Inside => self.state.region,
             _ => None,
         }
     }
@@ -253,7 +253,7 @@ impl Simulation {
     /// The region whose membrane the tip is denting, not yet punctured.
     pub fn denting(&self) -> Option<u16> {
         match self.state.phase {
-            Phase::Inside => self.state.denting,
+            Passage::Inside => self.state.denting,
             _ => None,
         }
     }

@@ -8,10 +8,11 @@ use crate::sheath::{FrontElement, Patch};
 use crate::splits::SurfaceSplits;
 use needlesim_core::math::Vec4;
 
-/// Where the needle is in its path through the body (the public [`PunctureState`] is the
-/// tip's view of it).
+/// The stage of the needle's passage through the body: in through the entry surface
+/// (Outside, Touching, Inside) and out through the far one (ExitTouching, Exited). The
+/// public [`PunctureState`] is the tip's view of it (three states).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub(crate) enum Phase {
+pub(crate) enum Passage {
     /// No contact.
     Outside,
     /// Denting the entry surface.
@@ -24,12 +25,12 @@ pub(crate) enum Phase {
     Exited,
 }
 
-impl Phase {
+impl Passage {
     pub(crate) fn state(self) -> PunctureState {
         match self {
-            Phase::Outside | Phase::Exited => PunctureState::Outside,
-            Phase::Touching | Phase::ExitTouching => PunctureState::Touching,
-            Phase::Inside => PunctureState::Inside,
+            Passage::Outside | Passage::Exited => PunctureState::Outside,
+            Passage::Touching | Passage::ExitTouching => PunctureState::Touching,
+            Passage::Inside => PunctureState::Inside,
         }
     }
 }
@@ -43,7 +44,7 @@ pub(crate) struct NeedleState {
     pub prev: Option<Needle>,
     /// Surface triangles with the entry and exit splits.
     pub surface: SurfaceSplits,
-    pub phase: Phase,
+    pub phase: Passage,
     /// Needle nodes, oldest first (a stack).
     pub nodes: Vec<NeedleNode>,
     /// Velocities written to the needle nodes this step.
@@ -108,7 +109,7 @@ impl NeedleState {
             needle,
             prev: needle,
             surface,
-            phase: Phase::Outside,
+            phase: Passage::Outside,
             nodes: Vec::new(),
             velocities: Vec::new(),
             positions: Vec::new(),

@@ -9,7 +9,7 @@ use super::{at, vec4, xyz, Simulation};
 use crate::friction::FrictionState;
 use crate::needle::Needle;
 use crate::nodes::{NeedleNode, NodeRole};
-use crate::state::Phase;
+use crate::state::Passage;
 use glam::DVec3;
 use needlesim_core::{NodeField, SimError};
 
@@ -17,7 +17,7 @@ impl Simulation {
     /// Whether the per-length friction model's sheath couples the needle nodes axially
     /// ([`crate::sheath`]); else the paper's model holds sticking nodes rigidly.
     pub(super) fn sheathed(&self) -> bool {
-        self.contact.per_length().is_some()
+        self.params.per_length().is_some()
     }
 
     /// Whether node `n` is held rigidly on the needle this step.
@@ -30,8 +30,8 @@ impl Simulation {
     /// the Surface node while Touching the entry: pinned to the tip in every direction.
     /// (With the per-length model the entry's load goes into the contact patch.)
     pub(super) fn pinned(&self, n: &NeedleNode) -> bool {
-        (n.role == NodeRole::Surface && self.state.phase == Phase::Touching && !self.sheathed())
-            || (n.role == NodeRole::Exit && self.state.phase == Phase::ExitTouching)
+        (n.role == NodeRole::Surface && self.state.phase == Passage::Touching && !self.sheathed())
+            || (n.role == NodeRole::Exit && self.state.phase == Passage::ExitTouching)
     }
 
     /// The divergence guard on the sliding needle nodes, whose positions `p` and

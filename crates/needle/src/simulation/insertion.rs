@@ -30,7 +30,7 @@ use crate::node_editor::{EditError, Placement};
 use crate::nodes::{NeedleNode, NodeRole};
 use crate::puncture::{mean_cone_angle, TouchingOutcome};
 use crate::sheath::{self, Patch, Tear};
-use crate::state::Phase;
+use crate::state::Passage;
 use crate::SimulationError;
 use glam::DVec3;
 use needlesim_core::NodeField;
@@ -155,9 +155,9 @@ impl Simulation {
                 self.state.punctured.clear();
                 self.state.patch = None;
                 self.state.front = Default::default();
-                Phase::Outside
+                Passage::Outside
             } else {
-                Phase::Inside
+                Passage::Inside
             };
         }
         Ok(node)
@@ -209,7 +209,7 @@ impl Simulation {
     /// punch of the contact radius `R_c` on a half-space of the touched region's material.
     fn entry_patch(&self) -> Patch {
         let surface_node = self.state.nodes.last().expect("the Surface node");
-        let layer = self.contact.layers[surface_node.region as usize];
+        let layer = self.params.regions[surface_node.region as usize];
         let (young, nu) = layer.modulus;
         let rc = layer.contact_radius;
         let radius = (2.0 * self.spacing).max(1.3 * rc);
@@ -321,13 +321,13 @@ impl Simulation {
     ) -> Result<(), SimulationError> {
         let dist = |a: [f64; 3], b: DVec3| (DVec3::from(a) - b).length();
         let (moved, phase) = match (self.state.phase, entry) {
-            (Phase::Outside, None) => return Ok(()),
-            (Phase::Outside, Some(p)) => (dist(now.tip(), p), "entering the body"),
+            (Passage::Outside, None) => return Ok(()),
+            (Passage::Outside, Some(p)) => (dist(now.tip(), p), "entering the body"),
             (phase, _) => (
                 dist(now.tip(), prev.tip().into()).max(dist(now.base(), prev.base().into())),
                 match phase {
-                    Phase::Touching | Phase::ExitTouching => "touching the surface",
-                    Phase::Exited => "through the body",
+                    Passage::Touching | Passage::ExitTouching => "touching the surface",
+                    Passage::Exited => "through the body",
                     _ => "inside the body",
                 },
             ),
@@ -353,11 +353,11 @@ impl Simulation {
         self.state.swept_from = prev.tip();
         self.state.advance =
             self.depth_of(now.tip(), now.direction()) - self.depth_of(prev.tip(), prev.direction());
-        if self.state.phase != Phase::Outside {
+        if self.state.phase != Passage::Outside {
             self.check_motion(prev, now, None)?;
         }
         match self.state.phase {
-            Phase::Outside => {
+            Passage::Outside => {
                 let hit = self.surface_crossing(prev.tip().into(), tip, true)?;
                 let Some((id, point)) = hit else {
                     return Ok(());
@@ -365,10 +365,10 @@ impl Simulation {
                 self.check_motion(prev, now, Some(point))?;
                 self.pin_at_surface(NodeRole::Surface, id, point, now, v_tip)?;
                 self.state.entry.get_or_insert(point.to_array());
-                self.state.phase = Phase::Touching;
+                self.state.phase = Passage::Touching;
             }
-            Phase::Touching | Phase::ExitTouching => {
-                let exit = self.state.phase == Phase::ExitTouching;
+            Passage::Touching | Passage::ExitTouching => {
+                let exit = self.state.phase == Passage::ExitTouching;
                 let sp = *self
                     .state
                     .surface
@@ -386,13 +386,13 @@ impl Simulation {
                 };
                 let corners = c.map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]);
                 let angle = mean_cone_angle(apex.to_array(), corners, t.to_array());
-                let mut outcome = self.contact.thresholds.touching(angle);
+                let mut outcome = self.params.thresholds.touching(angle);
                 // Entering, the membrane of the region touched rules if it has one.
                 let pinned_region = self.state.nodes.last().map_or(0, |n| n.region) as usize;
-                let threshold = match (exit, self.contact.layers[pinned_region].membrane) {
+                let threshold = match (exit, self.params.regions[pinned_region].membrane) {
                     (false, Membrane::Force(f)) => Some(f),
                     (false, Membrane::Impenetrable) => Some(f64::INFINITY),
-                    _ => self.contact.puncture_force,
+                    _ => self.params.puncture_force,
                 };
                 if let Some(f) = threshold {
                     // The patch's force is capped at the puncture force: reaching it
@@ -428,7 +428,7 @@ impl Simulation {
                         self.inside(now, v_tip)?;
                     }
                     (TouchingOutcome::Puncture, false) => {
-                        self.state.phase = Phase::Inside;
+                        self.state.phase = Passage::Inside;
                         self.state.region = Some(pinned_region as u16);
                         self.state.denting = None;
                         self.state.punctured.push(pinned_region as u16);
@@ -438,8 +438,8 @@ impl Simulation {
                         // force at once (when it was pressing harder than that), and the
                         // patch lets go of the rest over the tear ([`sheath::Tear`]).
                         let cut = self.state.cut_depth;
-                        let cutting = self.contact.layers[pinned_region].cutting;
-                        let (length, time) = (self.contact.point_length, self.contact.tear_time);
+                        let cutting = self.params.regions[pinned_region].cutting;
+                        let (length, time) = (self.params.point_length, self.params.tear_time);
                         let started = self.stepper.time();
                         let mut front = sheath::FrontElement::default();
                         if let Some(p) = self.state.patch.as_mut() {
@@ -470,15 +470,15 @@ impl Simulation {
                         self.inside(now, v_tip)?;
                     }
                     (TouchingOutcome::Puncture, true) => {
-                        self.state.phase = Phase::Exited;
+                        self.state.phase = Passage::Exited;
                         let exit = self.state.nodes.last_mut().expect("exit node");
                         exit.friction = FrictionState::Slip;
                         self.exited(now, v_tip)?;
                     }
                 }
             }
-            Phase::Inside => self.inside(now, v_tip)?,
-            Phase::Exited => self.exited(now, v_tip)?,
+            Passage::Inside => self.inside(now, v_tip)?,
+            Passage::Exited => self.exited(now, v_tip)?,
         }
         Ok(())
     }

@@ -15,7 +15,7 @@ use crate::needle::Needle;
 use crate::node_editor::Placement;
 use crate::nodes::{NeedleNode, NodeRole};
 use crate::splits::CrossingQuery;
-use crate::state::Phase;
+use crate::state::Passage;
 use crate::SimulationError;
 use glam::DVec3;
 use needlesim_core::math::Vec4;
@@ -86,7 +86,7 @@ impl Simulation {
             base: DVec3::from(now.base()),
             h: self.spacing,
             advancing,
-            per_length: self.contact.per_length().is_some(),
+            per_length: self.params.per_length().is_some(),
             sheathed,
             denting_membrane: sheathed && self.state.denting.is_some(),
             pos: read.positions,
@@ -197,7 +197,7 @@ impl Simulation {
             && has_tip
             && st.advancing
             && (st.pos[nodes.len() - 1] - st.base).dot(st.t)
-                > now.length() + 2.0 * self.contact.refresh;
+                > now.length() + 2.0 * self.params.refresh;
         let behind = st.sheathed
             && has_tip
             && ((!st.advancing && nodes[nodes.len() - 1].share == 0.0) || ahead);
@@ -342,7 +342,7 @@ impl Simulation {
         let denting = st.sheathed && self.state.denting.is_some();
         let due = has_tip
             && !st.edited
-            && moved > self.contact.refresh
+            && moved > self.params.refresh
             && (st.advancing || !st.sheathed)
             && !denting;
         if !due {
@@ -407,7 +407,7 @@ impl Simulation {
         }
         self.pin_at_surface(NodeRole::Exit, id, point, now, v_tip)?;
         st.pos.push(point);
-        self.state.phase = Phase::ExitTouching;
+        self.state.phase = Passage::ExitTouching;
         Ok(())
     }
 

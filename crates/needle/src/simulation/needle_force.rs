@@ -26,7 +26,7 @@ use crate::friction::{
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NodeRole};
 use crate::sheath::{front_step, punch_compliance, sheath_step, SheathStep, Tear};
-use crate::state::Phase;
+use crate::state::Passage;
 use glam::DVec3;
 use needlesim_core::{NodeField, SimError};
 
@@ -70,12 +70,12 @@ impl Simulation {
             .nodes
             .iter()
             .map(|n| {
-                let waiting = n.role == NodeRole::Surface && self.state.phase == Phase::Touching;
+                let waiting = n.role == NodeRole::Surface && self.state.phase == Passage::Touching;
                 !(self.pinned(n) || waiting)
             })
             .collect();
         let end = match self.state.phase {
-            Phase::Exited => None,
+            Passage::Exited => None,
             _ => Some(now.length()),
         };
         let mut l = shaft_lengths(s, &counted, end);
@@ -146,8 +146,8 @@ impl Simulation {
             // The node at the crack front: the Tip node, or the deepest node until the Tip
             // node is added (none once the tip has left the body).
             let front = match self.state.phase {
-                Phase::Inside if self.state.nodes[m - 1].role == NodeRole::Tip => m - 1,
-                Phase::Inside => {
+                Passage::Inside if self.state.nodes[m - 1].role == NodeRole::Tip => m - 1,
+                Passage::Inside => {
                     let s = |k: usize| (xyz(self.state.positions[k]) - base).dot(t);
                     (0..m).max_by(|&a, &b| s(a).total_cmp(&s(b))).unwrap_or(0)
                 }
@@ -213,13 +213,13 @@ impl Simulation {
             };
             let surface_rest = || DVec3::from(self.rest_of(self.state.nodes[0].index));
             self.state.tissue_depth = match self.state.phase {
-                Phase::Touching => Some(0.0),
-                Phase::Inside => material.map(|(x0, _)| (x0 - surface_rest()).dot(t)),
-                Phase::ExitTouching => {
+                Passage::Touching => Some(0.0),
+                Passage::Inside => material.map(|(x0, _)| (x0 - surface_rest()).dot(t)),
+                Passage::ExitTouching => {
                     let exit = self.state.nodes[m - 1].index;
                     Some((DVec3::from(self.rest_of(exit)) - surface_rest()).dot(t))
                 }
-                Phase::Outside | Phase::Exited => None,
+                Passage::Outside | Passage::Exited => None,
             };
             // The crack front meeting another region: a membrane to dent and puncture, or
             // none to cross (re-advancing in its track, no membrane). An intact membrane
@@ -238,7 +238,7 @@ impl Simulation {
                 let tearing = sheathed && self.state.front.tear.is_some();
                 if r != current && self.state.denting.is_none() && !tearing {
                     let fresh = !self.state.punctured.contains(&r);
-                    match self.contact.layers[r as usize].membrane {
+                    match self.params.regions[r as usize].membrane {
                         Membrane::Force(_) | Membrane::Impenetrable if fresh => {
                             if cutting {
                                 self.state.denting = Some(r);
@@ -252,11 +252,11 @@ impl Simulation {
                                 let f = &mut self.state.front;
                                 f.tear = Some(Tear {
                                     from: f.force,
-                                    to: self.contact.layers[r as usize].cutting,
+                                    to: self.params.regions[r as usize].cutting,
                                     at: self.state.cut_depth,
-                                    length: self.contact.point_length,
+                                    length: self.params.point_length,
                                     started: self.stepper.time(),
-                                    time: self.contact.tear_time,
+                                    time: self.params.tear_time,
                                 });
                             }
                         }
@@ -300,7 +300,7 @@ impl Simulation {
     /// what the nodes exert on the needle to `total`.
     fn paper_forces(&mut self, c: &Step, f: &mut [[f32; 4]], total: &mut DVec3) {
         let t = DVec3::from(c.now.direction());
-        let FrictionModel::Paper(pp) = self.contact.friction else {
+        let FrictionModel::Paper(pp) = self.params.friction else {
             unreachable!("the paper's forces with the paper's model");
         };
         for (k, fk) in f.iter_mut().enumerate() {
@@ -352,7 +352,7 @@ impl Simulation {
         let base = DVec3::from(c.now.base());
         let dt = self.stepper.dt();
         let droll = c.now.roll() - c.prev.roll();
-        let a = self.contact.radius;
+        let a = self.params.radius;
         let params = *self.stepper.params();
         let gravity = DVec3::from(params.gravity.map(|g| g as f64));
         // The contact patch: the tip pushes its weighted mean along the needle.
@@ -408,7 +408,7 @@ impl Simulation {
             }
             let (axial, normal) = split(fe.to_array(), t.to_array());
             let normal = DVec3::from(normal);
-            let layer = self.contact.layers[node.region as usize];
+            let layer = self.params.regions[node.region as usize];
             let FrictionModel::PerLength(pl) = layer.friction else {
                 unreachable!("regions share the per-length model");
             };
@@ -484,10 +484,10 @@ impl Simulation {
     /// region's membrane; `None` under the cone angle rule.
     pub(super) fn entry_puncture_force(&self) -> Option<f64> {
         let region = self.state.nodes.first().map_or(0, |n| n.region) as usize;
-        match self.contact.layers[region].membrane {
+        match self.params.regions[region].membrane {
             Membrane::Force(f) => Some(f),
             Membrane::Impenetrable => Some(f64::INFINITY),
-            Membrane::None => self.contact.puncture_force,
+            Membrane::None => self.params.puncture_force,
         }
     }
 
@@ -498,7 +498,7 @@ impl Simulation {
     /// along the track, nothing in a track already cut); it dents an inner membrane as an
     /// elastic element (the stiffness of a punch of the membrane's contact radius) up to
     /// the membrane's puncture force, then the membrane gives and tears.
-    fn front_step(&mut self, c: &Step, ds: f64, layer: super::Layer) -> f64 {
+    fn front_step(&mut self, c: &Step, ds: f64, layer: super::RegionParams) -> f64 {
         let cut = self.state.cut_depth;
         let mut front = self.state.front;
         let now = self.stepper.time();
@@ -508,19 +508,19 @@ impl Simulation {
         let denting = self
             .state
             .denting
-            .map(|r| (r, self.contact.layers[r as usize]));
+            .map(|r| (r, self.params.regions[r as usize]));
         // The cutting force of the region the crack front is in (that of the front node's
         // until the tip has a region).
         let cutting = self
             .state
             .region
-            .map_or(layer.cutting, |r| self.contact.layers[r as usize].cutting);
+            .map_or(layer.cutting, |r| self.params.regions[r as usize].cutting);
         // The tip pushes the front node only while the node is not ahead of its face
         // (within a refresh distance, which a node may wobble by): a node carried further
         // past it (soft tissue behind a stiff one gives way) is let go over the next
         // refresh distance, and is not driven on ahead of the needle.
         let ahead = c.s[c.front] - c.now.length();
-        let refresh = self.contact.refresh;
+        let refresh = self.params.refresh;
         let free = ((2.0 * refresh - ahead) / refresh).clamp(0.0, 1.0);
         let (cap, stiffness) = match (front.tear, denting) {
             (None, Some((_, l))) => {
@@ -540,7 +540,7 @@ impl Simulation {
                 // behind the membrane.
                 let reach = match cap.is_finite() {
                     true => cap / stiffness,
-                    false => self.contact.radius,
+                    false => self.params.radius,
                 };
                 let engaged = ((c.tip_depth - (cut - reach)) / reach).clamp(0.0, 1.0);
                 front.force = front_step(front.force, -stiffness * ds, cap * engaged * free);
@@ -553,7 +553,7 @@ impl Simulation {
                 // tip is drawn back from the front, and comes on again over the last radius
                 // when the tip returns to it along its track.
                 let cap = tear.map_or(cutting, |t| t.cap(cut, now));
-                let a = self.contact.radius;
+                let a = self.params.radius;
                 let engaged = ((c.tip_depth - (cut - a)) / a).clamp(0.0, 1.0);
                 front.force = cap * engaged * free;
                 (cap, 0.0)
@@ -574,9 +574,9 @@ impl Simulation {
                     from: front.force,
                     to: l.cutting,
                     at: cut,
-                    length: self.contact.point_length,
+                    length: self.params.point_length,
                     started: self.stepper.time(),
-                    time: self.contact.tear_time,
+                    time: self.params.tear_time,
                 });
             } else if !c.cutting && front.force == 0.0 {
                 // Pulled back off the membrane.

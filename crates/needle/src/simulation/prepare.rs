@@ -1,7 +1,7 @@
 //! Preparing a needle scene: the tissue with slots for the needle nodes, the needle's
 //! parameters resolved against the mesh (node spacing, grip), then the start on a backend.
 
-use super::{Contact, Layer, Simulation};
+use super::{NeedleParams, RegionParams, Simulation};
 use crate::checkpoint::{fingerprint, Checkpoint};
 use crate::config::Membrane;
 use crate::config::NeedleConfig;
@@ -21,7 +21,7 @@ pub struct Prepared {
     editor: NodeEditor,
     config: Option<NeedleConfig>,
     spacing: f64,
-    layers: Vec<Layer>,
+    regions: Vec<RegionParams>,
     rest: Vec<[f64; 3]>,
     physics: Physics,
     fingerprint: Vec<(String, u64)>,
@@ -56,9 +56,9 @@ impl Prepared {
             Some(c) => (
                 Some(c.start()?),
                 c.script().ok().flatten(),
-                Contact {
+                NeedleParams {
                     friction: c.friction,
-                    layers: self.layers.clone(),
+                    regions: self.regions.clone(),
                     thresholds: c.thresholds,
                     puncture_force: c.puncture_force,
                     refresh: c.tip_refresh * self.spacing,
@@ -70,9 +70,9 @@ impl Prepared {
             None => (
                 None,
                 None,
-                Contact {
+                NeedleParams {
                     friction: FrictionModel::default(),
-                    layers: self.layers.clone(),
+                    regions: self.regions.clone(),
                     thresholds: Default::default(),
                     puncture_force: None,
                     refresh: 0.1 * self.spacing,
@@ -100,7 +100,7 @@ impl Prepared {
             stepper,
             editor: self.editor,
             script,
-            contact,
+            params: contact,
             spacing: self.spacing,
             rest: self.rest,
             state: NeedleState::new(needle, surface),
@@ -214,10 +214,10 @@ fn resolve_layers(
     c: Option<&NeedleConfig>,
     h: f64,
     spacing: f64,
-) -> Result<Vec<Layer>, SceneError> {
+) -> Result<Vec<RegionParams>, SceneError> {
     let regions = &tissue.regions;
     let Some(c) = c else {
-        let none = Layer {
+        let none = RegionParams {
             friction: FrictionModel::default(),
             grip: 0.0,
             shear_stiffness: 0.0,
@@ -246,7 +246,7 @@ fn resolve_layers(
                 spacing,
                 &key,
             )?;
-            Ok(Layer {
+            Ok(RegionParams {
                 friction: rn.friction,
                 grip,
                 shear_stiffness,
@@ -309,7 +309,7 @@ impl Simulation {
             editor,
             config,
             spacing,
-            layers,
+            regions: layers,
             rest,
             physics: scene.physics,
         })

@@ -23,7 +23,7 @@ use super::{xyz, Simulation};
 use crate::needle::Needle;
 use crate::node_editor::{EditError, Placement};
 use crate::nodes::NodeRole;
-use crate::state::Phase;
+use crate::state::Passage;
 use crate::SimulationError;
 use glam::DVec3;
 use nalgebra::{DMatrix, DVector};
@@ -167,8 +167,8 @@ impl Simulation {
         let mut load = node.axial;
         let m = self.state.nodes.len();
         let front = match self.state.phase {
-            Phase::Inside if self.state.nodes[m - 1].role == NodeRole::Tip => Some(m - 1),
-            Phase::Inside => {
+            Passage::Inside if self.state.nodes[m - 1].role == NodeRole::Tip => Some(m - 1),
+            Passage::Inside => {
                 let (t, base) = (DVec3::from(now.direction()), DVec3::from(now.base()));
                 let s = |k: usize| (pos[k] - base).dot(t);
                 (0..m).max_by(|&a, &b| s(a).total_cmp(&s(b)))

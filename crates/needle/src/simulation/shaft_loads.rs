@@ -99,7 +99,7 @@ impl Simulation {
         let v = self
             .node_velocity(k, known)
             .map_err(|e| self.edit(e.into()))?;
-        if self.contact.per_length().is_none() {
+        if self.params.per_length().is_none() {
             return Ok((state, v, Placement::Offset([0.0; 3])));
         }
         let index = self.state.nodes[k].index;
@@ -150,7 +150,7 @@ impl Simulation {
         v_tip: DVec3,
         known: Option<&[Vec4]>,
     ) -> Result<(DVec3, FrictionState), SimulationError> {
-        if self.contact.per_length().is_none() {
+        if self.params.per_length().is_none() {
             return Ok((v_tip, FrictionState::Stick));
         }
         // The tissue's velocity around the last node (the mean of its mesh neighbours).
