@@ -662,12 +662,30 @@ fn adapter() -> Option<String> {
         .map(|c| c.describe())
 }
 
+/// The tissue models, from needlesim's registry: one dict per model with its TOML tag
+/// (`model = "<tag>"` in `[material]`), short name, label and structural keys.
+#[pyfunction]
+fn models(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
+    needlesim::core::models::MODELS
+        .iter()
+        .map(|m| {
+            let d = PyDict::new(py);
+            d.set_item("tag", m.tag)?;
+            d.set_item("short_name", m.short_name)?;
+            d.set_item("label", m.label)?;
+            d.set_item("structural_keys", m.structural_keys.to_vec())?;
+            Ok(d)
+        })
+        .collect()
+}
+
 #[pymodule]
 fn _needlesim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySimulation>()?;
     m.add_class::<haptic::PyHapticLoop>()?;
     m.add_class::<haptic::PySineDevice>()?;
     m.add_function(wrap_pyfunction!(adapter, m)?)?;
+    m.add_function(wrap_pyfunction!(models, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -323,3 +323,31 @@ def test_history_can_be_bounded_or_streamed():
     chunks.append(sim.history(clear=True)["step"])
     assert len(chunks[1]) == 50 and chunks[1][0] == 3001
     assert len(sim.history()["step"]) == 0
+
+
+def test_models_come_from_the_registry_and_each_tag_builds_a_scene():
+    models = needlesim.models()
+    tags = [m["tag"] for m in models]
+    assert "neo_hookean" in tags and "mass_spring" in tags
+    assert len(set(tags)) == len(tags)
+    assert len({m["short_name"] for m in models}) == len(models)
+    # Every continuum tag runs a small scene (the discrete ones take a stiffness).
+    for m in models:
+        material = {"model": m["tag"]}
+        if m["tag"] in ("mass_spring", "local_shape_matching"):
+            material["stiffness"] = 20.0
+        else:
+            material.update(young_modulus=1e4, poisson_ratio=0.3)
+        sim = needlesim.Simulation.from_dict(
+            {
+                "tissue": {
+                    "geometry": {"kind": "box", "min": [0, 0, 0], "max": [0.02] * 3, "nodes": 125}
+                },
+                "material": material,
+                "physics": {"dt": 1e-4, "damping": 20.0},
+            },
+            threads=1,
+        )
+        sim.step(10)
+        assert np.isfinite(sim.positions).all(), m["tag"]
+

@@ -23,7 +23,7 @@ Arrays are float64 (int64 for indices) copies of the simulation state, shaped
 (n, 3); they do not change when the simulation steps on.
 """
 
-from ._needlesim import HapticLoop, SineDevice, Simulation, adapter, __version__
+from ._needlesim import HapticLoop, SineDevice, Simulation, adapter, models, __version__
 from ._fit import FitError, FitResult, fit
 from ._sweep import (
     OverrideError,
@@ -49,6 +49,7 @@ __all__ = [
     "fit",
     "grid",
     "load_scene",
+    "models",
     "sweep",
     "__version__",
 ]

@@ -173,3 +173,8 @@ class HapticLoop:
 
 def adapter() -> Optional[str]:
     """The GPU adapter wgpu finds, or None."""
+
+def models() -> List[Dict[str, Any]]:
+    """The tissue models, from needlesim's registry: one dict per model with its TOML
+    tag (``model = "<tag>"`` in ``[material]``), ``short_name``, ``label`` and
+    ``structural_keys`` (the keys every ``[[region]]`` must share)."""
