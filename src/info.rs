@@ -12,6 +12,9 @@ pub struct SceneInfo {
     pub name: String,
     /// Model short name.
     pub model: &'static str,
+    /// What the model cannot represent of an isotropic solid, if anything
+    /// ([`needlesim_core::models::TissueModel::limitation`]).
+    pub limitation: Option<&'static str>,
     /// Mesh nodes.
     pub nodes: usize,
     /// Allocated node slots.
@@ -67,6 +70,7 @@ impl SceneInfo {
         SceneInfo {
             name: scene.name.clone(),
             model: scene.material.short_name(),
+            limitation: scene.material.limitation(),
             nodes: n,
             capacity: t.state.capacity(),
             fixed: t.n_fixed,
@@ -110,6 +114,9 @@ impl fmt::Display for SceneInfo {
             }
         )?;
         writeln!(f, "model      {}", self.model)?;
+        if let Some(l) = self.limitation {
+            writeln!(f, "           note: {l}")?;
+        }
         writeln!(
             f,
             "nodes      {} (capacity {}, fixed {})",

@@ -17,6 +17,7 @@
 
 pub mod cases;
 pub mod constants;
+pub mod effective;
 pub mod error;
 pub mod extreme;
 pub mod fem;
@@ -85,6 +86,8 @@ pub struct ReportSummary {
     pub needle: needle::NeedleReport,
     /// The needle force realism section.
     pub realism: realism::Realism,
+    /// The elastic constants each model shows.
+    pub effective: Vec<effective::Effective>,
     /// Wall time of the whole report.
     pub elapsed: Duration,
 }
@@ -263,6 +266,16 @@ pub fn run_report(
     }
     let needle = needle::run_needle(options.size == ReportSize::Full, &mut progress)?;
     let realism = realism::run_realism(options.size == ReportSize::Full, &mut progress)?;
+    let effective = effective::run(13)?;
+    for r in &effective {
+        progress(&format!(
+            "effective    {:<14} E {:.2} kPa, nu {:.3}, anisotropy {:.3}",
+            r.model.label(),
+            r.young / 1e3,
+            r.poisson,
+            r.anisotropy
+        ));
+    }
     let summary = ReportSummary {
         accuracy,
         timing,
@@ -270,6 +283,7 @@ pub fn run_report(
         extreme,
         needle,
         realism,
+        effective,
         elapsed: start.elapsed(),
     };
     write_all(options, &summary)?;
@@ -368,6 +382,7 @@ fn write_all(options: &ReportOptions, s: &ReportSummary) -> Result<(), ReportErr
         .unwrap();
     }
     write(&out.join("extreme.csv"), &csv)?;
+    write(&out.join("effective.csv"), &effective::csv(&s.effective))?;
     plots(out, s)?;
     needle::write_needle(out, &s.needle).map_err(io(out))?;
     realism::write_realism(out, &s.realism).map_err(io(out))?;
@@ -713,6 +728,7 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
         }
         writeln!(md).unwrap();
     }
+    effective::markdown(&mut md, &s.effective);
     needle::markdown(&mut md, &s.needle);
     realism::markdown(&mut md, &s.realism);
     md

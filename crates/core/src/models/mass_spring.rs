@@ -124,6 +124,17 @@ impl TissueModel for MassSpringParams {
         Ok((self.stiffness / (cal.mass_spring * spacing), 0.25))
     }
 
+    /// Measured on a free 13^3-node cube (the report's "What each model represents", K =
+    /// 18): Poisson ratio 0.22, bulk and shear moduli 0.71 and 0.83 of those of an
+    /// isotropic solid with the same E and nu = 0.3, cubic anisotropy 0.78.
+    fn limitation(&self) -> Option<&'static str> {
+        Some(
+            "a lattice of central springs: its Poisson ratio is about 0.22 and its bulk and \
+             shear stiffness are tied together, whatever the material asks (the stiffness sets \
+             E through k = C E h); use a continuum model where nu matters",
+        )
+    }
+
     fn prepare_neighbours(
         &self,
         nb: &mut Neighbours,

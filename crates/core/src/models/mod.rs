@@ -148,6 +148,13 @@ macro_rules! define_models {
                 }
             }
 
+            /// See [`TissueModel::limitation`].
+            pub fn limitation(&self) -> Option<&'static str> {
+                match self {
+                    $( Material::$variant(p) => p.limitation(), )*
+                }
+            }
+
             /// See [`TissueModel::prepare_neighbours`].
             pub fn prepare_neighbours(
                 &self,

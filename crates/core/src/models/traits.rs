@@ -106,6 +106,13 @@ pub trait TissueModel:
         neighbours: usize,
     ) -> Result<(f64, f64), UncalibratedNeighbours>;
 
+    /// What the model cannot represent of an isotropic elastic solid, in one sentence
+    /// for `needlesim info` and the docs; `None` for a model that takes E and nu as they
+    /// are given.
+    fn limitation(&self) -> Option<&'static str> {
+        None
+    }
+
     /// Adjusts the neighbour weights of the first `n` nodes before anything is built from
     /// them (mass-spring's spring shares); nothing by default.
     fn prepare_neighbours(

@@ -159,6 +159,25 @@ impl TissueModel for ShapeMatchingParams {
         Ok((self.stiffness / (c * spacing), 0.0))
     }
 
+    /// Measured on a free 13^3-node cube (the report's "What each model represents", K =
+    /// 18): Poisson ratio 0.0002 with cluster forces (bulk modulus 0.44, shear 1.40 of an
+    /// isotropic solid with the same E and nu = 0.3) and -0.014 with the paper's per-node
+    /// forces (shear 2.0, anisotropy 1.28).
+    fn limitation(&self) -> Option<&'static str> {
+        Some(match self.forces {
+            ShapeMatchingForces::Cluster => {
+                "shape matching pulls nodes to rigid goals: its Poisson ratio is about 0 (no \
+                 lateral contraction) and its bulk stiffness is about half an isotropic \
+                 solid's, whatever the material asks; use a continuum model where nu matters"
+            }
+            ShapeMatchingForces::Node => {
+                "the paper's per-node shape matching forces do not form an isotropic elastic \
+                 material (Poisson ratio about 0, shear twice too stiff, anisotropic) and need \
+                 velocity damping to stay stable; use a continuum model where nu matters"
+            }
+        })
+    }
+
     fn build(&self, rest: &[Vec4], nb: &Neighbours, n: usize, _ctx: BuildContext) -> Shape {
         let capacity = rest.len();
         let rest_position = rest_positions(rest);
