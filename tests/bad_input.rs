@@ -416,6 +416,8 @@ fn bad_needle_tables_name_the_key() {
         (with("point_length = inf\n"), "needle.point_length"),
         (with("tear_time = -0.01\n"), "needle.tear_time"),
         (with("tear_time = nan\n"), "needle.tear_time"),
+        (with("speed_ramp = -0.05\n"), "needle.speed_ramp"),
+        (with("speed_ramp = inf\n"), "needle.speed_ramp"),
         (with("friction = { shear_stiffness = -1.0 }\n"), "needle.friction.shear_stiffness"),
         (with("friction = { shear_stiffness = nan }\n"), "needle.friction.shear_stiffness"),
         (with("friction = { sheath_viscosity = -2.0 }\n"), "needle.friction.sheath_viscosity"),

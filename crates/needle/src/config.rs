@@ -19,6 +19,8 @@
 //!                                # diameter / tan 18 deg)
 //! tear_time = 0.015              # s: a membrane that gave lets go of its load within
 //!                                # this time at most (default 15 ms)
+//! speed_ramp = 0.05              # s: the needle's speed changes over this time at each
+//!                                # keyframe boundary (default 50 ms; 0: within a step)
 //! friction = { coefficient = 0.3, grip = 40.0 }      # per unit length (default model)
 //! # friction = { model = "paper", static_threshold = 0.02, dynamic = 0.3, viscous = 0.5 }
 //!
@@ -89,6 +91,10 @@ pub struct NeedleConfig {
     /// cutting force, s (per-length model; default 15 ms, [`crate::sheath::Tear`]).
     #[serde(default)]
     pub tear_time: Option<f64>,
+    /// Time over which the scripted speed changes at each keyframe boundary, s (default
+    /// [`crate::script::DEFAULT_RAMP`]; 0 changes it within one step).
+    #[serde(default)]
+    pub speed_ramp: Option<f64>,
     /// Stick-slip friction (read from the `friction` table by [`FrictionModel::from_value`]).
     #[serde(skip)]
     pub friction: FrictionModel,
@@ -242,6 +248,14 @@ impl NeedleConfig {
                 }
             }
         }
+        if let Some(r) = self.speed_ramp {
+            if !(r.is_finite() && r >= 0.0) {
+                return Err(SceneError::invalid(
+                    "needle.speed_ramp",
+                    format!("must be a finite number >= 0 (s), got {r}"),
+                ));
+            }
+        }
         if self.cutting > 0.0 && matches!(self.friction, FrictionModel::Paper(_)) {
             return Err(SceneError::invalid(
                 "needle.cutting",
@@ -381,7 +395,8 @@ impl NeedleConfig {
             index: 0,
             reason: e.to_string(),
         })?;
-        PoseScript::new(start, self.keyframe.clone()).map(Some)
+        let ramp = self.speed_ramp.unwrap_or(crate::script::DEFAULT_RAMP);
+        PoseScript::new(start, self.keyframe.clone()).map(|s| Some(s.with_ramp(ramp)))
     }
 
     /// Needle node slots for node spacing `h`: one per spacing along the whole needle,
