@@ -7,17 +7,13 @@
 //! A hand or a robot cannot change the needle's speed in no time: the speed (and the turn
 //! rate) changes at each keyframe boundary, and at the end, over a ramp of `ramp` seconds
 //! centred on the boundary ([`PoseScript::with_ramp`], `needle.speed_ramp`, default
-//! [`DEFAULT_RAMP`]). The pose there is the mean of the scripted pose over the ramp's
-//! window, which for a straight motion is exactly a linear change of velocity: the needle
-//! reaches every keyframe's end pose as scripted, only the corners are rounded. (An
+//! [`DEFAULT_RAMP`]; at most half of either keyframe it joins): one keyframe's speed falls
+//! linearly while the next one's rises ([`PoseScript::pose_at`]), so the needle joins the
+//! scripted pose exactly at both ends of the ramp and only the corner is rounded. (An
 //! instant stop or reversal of a needle in tissue is an instant step of the viscous part
 //! of the friction; measured with the per-length model on `needle_insert_extract`, the
-//! force stepped by 7.3% of itself in one step when the extraction started.) The start at
-//! time 0 is not ramped: the needle starts outside the tissue. Nor is a boundary where a
-//! `rotate` keyframe starts or ends: the mean of poses along an arc lies inside the arc, so
-//! the window's edges would move the needle by `r (angle)^2 / 24` in one step (2.6 um on
-//! the paper scenes, whose force then rang by 0.6 N); for straight motions, pauses and
-//! spins the mean is exact and the ramp joins the scripted pose without a step.
+//! force stepped by 7.3% of itself in one step when the extraction started, 2.1% with the
+//! ramp.) The start at time 0 is not ramped: the needle starts outside the tissue.
 //!
 //! ```toml
 //! [[keyframe]]
@@ -110,14 +106,6 @@ pub struct ScriptError {
 /// reversed in 50 ms is an acceleration of 1 m/s^2, within what needle insertion robots
 /// and hands do.
 pub const DEFAULT_RAMP: f64 = 0.05;
-
-/// Gauss-Legendre nodes and weights on [-1, 1] (4 points: exact for cubics).
-const GAUSS: [(f64, f64); 4] = [
-    (-0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
-    (-0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
-    (0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
-    (0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
-];
 
 /// A start pose and keyframes, with the pose at the start of every keyframe precomputed.
 #[derive(Debug, Clone, PartialEq)]
@@ -243,54 +231,51 @@ impl PoseScript {
         self
     }
 
-    /// The boundaries the ramps smooth: every keyframe start after time 0, and the end,
-    /// where no `rotate` keyframe meets (module docs).
-    fn boundaries(&self) -> impl Iterator<Item = f64> + '_ {
-        let turns = |i: usize| matches!(self.keyframes.get(i), Some(Keyframe::Rotate { .. }));
-        (1..=self.keyframes.len())
-            .filter(move |&i| !turns(i - 1) && !turns(i))
-            .map(|i| self.starts.get(i).map_or(self.end.0, |s| s.0))
-    }
-
     /// Total duration in seconds.
     pub fn duration(&self) -> f64 {
         self.end.0
     }
 
+    /// The half-width of the ramp at the boundary before keyframe `i` (`i` = the number of
+    /// keyframes: the end): half the ramp, but at most half of either keyframe it joins,
+    /// so that no two ramps overlap; 0 at time 0.
+    fn half_ramp(&self, i: usize) -> f64 {
+        let d = |k: usize| self.keyframes.get(k).map_or(f64::INFINITY, duration);
+        match i {
+            0 => 0.0,
+            _ => (0.5 * self.ramp).min(0.5 * d(i - 1)).min(0.5 * d(i)),
+        }
+    }
+
     /// The needle at time `t` (the start pose before 0, the final pose after the end),
     /// with the speed ramps at the keyframe boundaries.
+    ///
+    /// Within the ramp of half-width `h` about the boundary `t_b` between keyframes A and
+    /// B, the speed of A falls and that of B rises linearly: with `x = t - (t_b - h)`, A
+    /// has run `t_b - h - t_A + x - x^2 / (4 h)` of its time and B `x^2 / (4 h)` of its
+    /// own, and the pose is B's motion applied after A's. At `x = 0` that is A's scripted
+    /// pose and at `x = 2 h` B's, exactly, whatever the motions (a straight move, a turn
+    /// about an axis, a spin).
     pub fn pose_at(&self, t: f64) -> Needle {
-        let half = 0.5 * self.ramp;
-        if half == 0.0 || !self.boundaries().any(|b| (t - b).abs() < half) {
-            return self.raw_pose_at(t);
-        }
-        // The mean pose over [t - half, t + half], integrated piece by piece between the
-        // boundaries inside the window (each piece smooth: 4 Gauss points).
-        let (lo, hi) = (t - half, t + half);
-        let mut cuts: Vec<f64> = self.boundaries().filter(|b| *b > lo && *b < hi).collect();
-        cuts.insert(0, lo);
-        cuts.push(hi);
-        let (mut base, mut dir, mut roll) = (DVec3::ZERO, DVec3::ZERO, 0.0);
-        for w in cuts.windows(2) {
-            let (a, b) = (w[0], w[1]);
-            for (x, wt) in GAUSS {
-                let n = self.raw_pose_at(0.5 * (a + b) + 0.5 * (b - a) * x);
-                let f = wt * 0.5 * (b - a) / self.ramp;
-                base += DVec3::from_array(n.base()) * f;
-                dir += DVec3::from_array(n.direction()) * f;
-                roll += n.roll() * f;
+        for i in 1..=self.keyframes.len() {
+            let h = self.half_ramp(i);
+            let tb = self.starts.get(i).map_or(self.end.0, |s| s.0);
+            if h <= 0.0 || (t - tb).abs() >= h {
+                continue;
             }
+            let x = t - (tb - h);
+            let (ta, start_a) = self.starts[i - 1];
+            let ka = &self.keyframes[i - 1];
+            let in_b = x * x / (4.0 * h);
+            let in_a = (tb - h - ta) + x - in_b;
+            // Validated in `new`, so the poses inside the keyframes are valid.
+            let after_a = advance(&start_a, ka, in_a).unwrap_or(start_a);
+            return match self.keyframes.get(i) {
+                Some(kb) => advance(&after_a, kb, in_b).unwrap_or(after_a),
+                None => after_a,
+            };
         }
-        let mut out = self.raw_pose_at(t);
-        // A mean of unit directions is shorter than 1 (a turn): normalised. Valid poses in
-        // valid poses out; should it fail, the scripted pose stands.
-        let ok = out
-            .set_pose(base.to_array(), dir.normalize_or_zero().to_array())
-            .and_then(|_| out.set_roll(roll));
-        match ok {
-            Ok(()) => out,
-            Err(_) => self.raw_pose_at(t),
-        }
+        self.raw_pose_at(t)
     }
 
     /// The scripted pose at time `t`, without ramps.
@@ -451,9 +436,10 @@ mod tests {
         );
     }
 
-    /// A turn is not ramped: its boundaries keep the scripted poses.
+    /// A turn ramps too: its speed changes continuously at the stop, the direction stays
+    /// a unit vector and the scripted poses hold at both ends of the ramp.
     #[test]
-    fn a_rotation_is_not_ramped() {
+    fn a_turn_ramps_and_joins_the_scripted_poses() {
         let keys = vec![
             Keyframe::Rotate {
                 axis: [0.0, 0.0, 1.0],
@@ -468,8 +454,30 @@ mod tests {
             PoseScript::new(start, keys.clone()).unwrap(),
             PoseScript::new(start, keys).unwrap().with_ramp(0.0),
         );
-        for t in [0.98, 0.99, 1.0, 1.01, 1.5] {
-            assert_eq!(s.pose_at(t), raw.pose_at(t), "t = {t}");
+        let angle = |n: Needle| {
+            let d = DVec3::from_array(n.direction());
+            assert!((d.length() - 1.0).abs() < 1e-12);
+            d.y.atan2(d.x).to_degrees()
+        };
+        for t in [0.5, 0.975, 1.025, 1.5] {
+            assert!(
+                (angle(s.pose_at(t)) - angle(raw.pose_at(t))).abs() < 1e-9,
+                "t = {t}"
+            );
+            let (a, b) = (s.pose_at(t).base(), raw.pose_at(t).base());
+            assert!((0..3).all(|c| (a[c] - b[c]).abs() < 1e-12), "t = {t}");
         }
+        // Halfway through the stop it has turned less than the full 90 degrees.
+        assert!(angle(s.pose_at(1.0)) < 90.0 - 0.1);
+        // The turn rate changes by at most 90 deg/s * dt / ramp per 1 ms step.
+        let dt = 1e-3;
+        let rate = |t: f64| (angle(s.pose_at(t + dt)) - angle(s.pose_at(t))) / dt;
+        let mut largest = 0.0f64;
+        let mut t = 0.95;
+        while t < 1.05 {
+            largest = largest.max((rate(t + dt) - rate(t)).abs());
+            t += dt;
+        }
+        assert!(largest < 90.0 * dt / 0.05 * 1.05, "{largest}");
     }
 }
