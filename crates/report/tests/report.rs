@@ -23,7 +23,12 @@ fn spec(level: usize) -> RunSpec {
 /// was 9.0%.
 #[test]
 fn continuum_models_carry_e_eps_in_the_stretch() {
-    for model in [ModelId::Deb, ModelId::DebCorotated, ModelId::Pba] {
+    for model in [
+        ModelId::Deb,
+        ModelId::DebCorotated,
+        ModelId::Pba,
+        ModelId::NeoHookean,
+    ] {
         let r = run_case(CaseId::Stretch, model, &spec(2)).unwrap();
         assert!(r.converged, "{}: not settled", model.label());
         assert!(
@@ -42,12 +47,13 @@ fn continuum_models_carry_e_eps_in_the_stretch() {
 }
 
 /// Every model variant but the paper's per-node shape matching forces.
-const CONVERGING: [ModelId; 5] = [
+const CONVERGING: [ModelId; 6] = [
     ModelId::Msm,
     ModelId::LshmCluster,
     ModelId::Deb,
     ModelId::DebCorotated,
     ModelId::Pba,
+    ModelId::NeoHookean,
 ];
 
 /// `case` for `model` at the three coarsest levels; every run must settle.
@@ -207,7 +213,7 @@ fn clamped_cylinder_sag_matches_scikit_fem() {
         eprintln!("{msg}");
         assert!((2000..3500).contains(&nodes[2]), "{msg}");
         match model {
-            ModelId::Deb | ModelId::DebCorotated | ModelId::Pba => {
+            ModelId::Deb | ModelId::DebCorotated | ModelId::Pba | ModelId::NeoHookean => {
                 assert!(CaseId::Column.error_falls(&sag), "{msg}");
                 assert!(CaseId::Column.error_falls(&field), "{msg}");
                 assert!(sag[2] < 0.05 && field[2] < 0.05, "{msg}");

@@ -2,6 +2,7 @@
 
 use crate::constants::*;
 use needlesim_core::calibration;
+use needlesim_core::models::neo_hookean::NeoHookeanParams;
 use needlesim_core::scene::{
     BackendChoice, DebunneParams, ShapeMatchingForces, ShapeMatchingParams,
 };
@@ -23,17 +24,20 @@ pub enum ModelId {
     DebCorotated,
     /// Point based animation.
     Pba,
+    /// Compressible neo-Hookean.
+    NeoHookean,
 }
 
 impl ModelId {
     /// Every variant, in report order.
-    pub const ALL: [ModelId; 6] = [
+    pub const ALL: [ModelId; 7] = [
         ModelId::Msm,
         ModelId::LshmNode,
         ModelId::LshmCluster,
         ModelId::Deb,
         ModelId::DebCorotated,
         ModelId::Pba,
+        ModelId::NeoHookean,
     ];
 
     /// Short label used in tables and legends.
@@ -45,6 +49,7 @@ impl ModelId {
             ModelId::Deb => "deb",
             ModelId::DebCorotated => "deb-corotated",
             ModelId::Pba => "pba",
+            ModelId::NeoHookean => "nh",
         }
     }
 
@@ -57,6 +62,7 @@ impl ModelId {
             ModelId::Deb => [214, 39, 40],
             ModelId::DebCorotated => [148, 103, 189],
             ModelId::Pba => [140, 86, 75],
+            ModelId::NeoHookean => [227, 119, 194],
         }
     }
 
@@ -88,6 +94,7 @@ impl ModelId {
                 Material::DebunneMeshfree(DebunneParams::new(young, POISSON).with_corotated(true))
             }
             ModelId::Pba => Material::point_based(young, POISSON),
+            ModelId::NeoHookean => Material::NeoHookean(NeoHookeanParams::new(young, POISSON)),
         }
     }
 

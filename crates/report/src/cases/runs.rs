@@ -95,9 +95,29 @@ pub(super) fn frequency(model: ModelId, spec: &RunSpec) -> Result<CaseResult, Re
 /// (Green strain E_G, `S = lambda tr(E_G) I + 2 mu E_G`): under uniaxial stress the lateral
 /// Green strain is `-nu` times the axial one, `E_G,zz = ((1 + eps)^2 - 1) / 2`, and the
 /// nominal stress is `(1 + eps) E E_G,zz`, which exceeds `E eps` by `1.5 eps` (0.3% here).
+/// Neo-Hookean: the exact homogeneous solution, lateral stretch `t` the root of
+/// `mu (t^2 - 1) + lambda ln(s t^2) = 0` and `P = mu (s - 1/s) + lambda ln(s t^2) / s` at
+/// `s = 1 + eps`.
 pub fn stretch_reference(model: ModelId) -> (f64, f64) {
     let eps = STRETCH;
     match model {
+        ModelId::NeoHookean => {
+            let (lambda, mu) = needlesim_core::scene::lame(YOUNG, POISSON);
+            let s = 1.0 + eps;
+            let g = |t: f64| mu * (t * t - 1.0) + lambda * (s * t * t).ln();
+            let (mut lo, mut hi) = (0.5f64, 1.5f64);
+            for _ in 0..100 {
+                let mid = 0.5 * (lo + hi);
+                if g(mid) > 0.0 {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            let t = 0.5 * (lo + hi);
+            let p = mu * (s - 1.0 / s) + lambda * (s * t * t).ln() / s;
+            (p, -(t - 1.0) / eps)
+        }
         ModelId::Pba => {
             let green = 0.5 * ((1.0 + eps) * (1.0 + eps) - 1.0);
             let lateral = (1.0 - 2.0 * POISSON * green).sqrt() - 1.0;

@@ -64,7 +64,10 @@ pub(super) fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setu
     };
     let mut material = model.material(YOUNG, h);
     if matches!(case, CaseId::Sphere | CaseId::Column)
-        && matches!(model, ModelId::Deb | ModelId::DebCorotated | ModelId::Pba)
+        && matches!(
+            model,
+            ModelId::Deb | ModelId::DebCorotated | ModelId::Pba | ModelId::NeoHookean
+        )
     {
         material = material
             .with_key("hourglass", RESAMPLED_HOURGLASS)
