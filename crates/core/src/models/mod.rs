@@ -23,6 +23,7 @@
 //!
 //! Only the chosen model's arrays are allocated.
 
+pub mod continuum;
 pub mod debunne_meshfree;
 pub mod local_shape_matching;
 pub mod mass_spring;

@@ -20,13 +20,11 @@
 //! up to the volume enclosed by the surface. Surface nodes have fewer neighbours and so
 //! too large a volume: the report's cantilever is 38% too stiff at 1025 nodes with it, 4%
 //! with cell volumes.
+use super::continuum::{ContinuumLaw, ContinuumShape};
 use super::mls::{
-    default_hourglass, pack_first_pass, validate_continuum, ContinuumArrays, ContinuumConstants,
-    NodeVolumes,
+    default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, NodeVolumes,
 };
-use super::traits::{
-    BuildContext, ForceInput, ModelInfo, ModelState, ShapeArray, ShapeRow, TissueModel,
-};
+use super::traits::{BuildContext, ModelInfo, TissueModel};
 use crate::calibration::UncalibratedNeighbours;
 use crate::error::SceneError;
 use crate::math::Vec4;
@@ -133,72 +131,28 @@ impl TissueModel for PointBasedParams {
     }
 
     fn build(&self, rest: &[Vec4], nb: &Neighbours, n: usize, ctx: BuildContext) -> Shape {
-        Shape {
-            params: *self,
-            continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx),
-        }
+        ContinuumShape::build(*self, self.node_volumes, rest, nb, n, ctx)
     }
 }
 
-/// Point based animation's shape information.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Shape {
-    /// The parameters.
-    pub params: PointBasedParams,
-    /// Rest positions and volumes, inverse moments, first pass.
-    pub continuum: ContinuumArrays,
-}
+/// Point based animation's shape information: the continuum arrays ([`ContinuumShape`]).
+pub type Shape = ContinuumShape<PointBasedParams>;
 
-impl ModelState for Shape {
-    fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
-        self.continuum.arrays()
+impl ContinuumLaw for PointBasedParams {
+    fn law_constants(&self) -> ContinuumConstants {
+        self.constants()
     }
 
-    fn arrays_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
-        self.continuum.arrays_mut()
-    }
-
-    fn node_rows(
-        &self,
+    fn law_first_pass(
         i: usize,
+        positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        volume_scale: f64,
-        rest_position: bool,
-    ) -> Vec<ShapeRow> {
-        self.continuum
-            .node_rows(i, rest, nb, volume_scale, rest_position)
-    }
-
-    fn volume_scale(&self, rest: &[Vec4], nb: &Neighbours, n: usize) -> f64 {
-        self.continuum.volume_scale(rest, nb, n)
-    }
-
-    fn node_volumes(&self, n: usize) -> Option<Vec<f32>> {
-        Some(self.continuum.node_volumes(n))
-    }
-
-    fn cpu_forces(&mut self, input: &ForceInput, forces: &mut [Vec4]) {
-        let ForceInput {
-            positions: pos,
-            nb,
-            n,
-            ..
-        } = *input;
-        let c = self.params.constants();
-        let material = input.node_material;
-        let ContinuumArrays {
-            rest_position,
-            inverse_moment,
-            first_pass: first,
-            ..
-        } = &mut self.continuum;
-        let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
-        input.threads.map_nodes(&mut first[..n], |i| {
-            let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
-            first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
-        });
-        self.continuum.gather_forces(input, forces);
+        inverse_moment: &[f32; 9],
+        volume: f32,
+        c: &ContinuumConstants,
+    ) -> [f32; 12] {
+        first_pass(i, positions, rest, nb, inverse_moment, volume, c)
     }
 }
 
