@@ -658,6 +658,33 @@ mod tests {
         assert_eq!(&swapped[0..4], &[2, 1, 0, 3]);
     }
 
+    /// `view.wgsl` parses and validates with naga, and has every entry point the
+    /// pipelines name, of the right stage.
+    #[test]
+    fn the_shader_validates_and_has_the_pipelines_entry_points() {
+        let module = naga::front::wgsl::parse_str(SHADER)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(SHADER)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{e:?}"));
+        let stage = |name: &str| {
+            module
+                .entry_points
+                .iter()
+                .find(|e| e.name == name)
+                .map(|e| e.stage)
+        };
+        for vs in ["vs_lit", "vs_marker", "vs_overlay"] {
+            assert_eq!(stage(vs), Some(naga::ShaderStage::Vertex), "{vs}");
+        }
+        for fs in ["fs_lit", "fs_flat"] {
+            assert_eq!(stage(fs), Some(naga::ShaderStage::Fragment), "{fs}");
+        }
+    }
+
     #[test]
     fn sizes_out_of_range_are_rejected() {
         assert!(matches!(
