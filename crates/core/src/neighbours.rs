@@ -10,7 +10,7 @@
 //!
 //! The k-nearest search is a hand-written uniform grid rather than a spatial-index crate
 //! (a k-d tree such as kiddo or rstar): those order equidistant candidates arbitrarily or
-//! by index, and the point-symmetric tie-break of [`closer`] is what keeps lattice
+//! by index, and the point-symmetric tie-break of `closer` is what keeps lattice
 //! neighbourhoods symmetric (see there).
 
 use crate::scene::WeightKernel;
@@ -282,7 +282,7 @@ impl UniformGrid {
     }
 
     /// The `k` nearest points to `p` (excluding index `exclude`), as `(squared distance,
-    /// index)` sorted by distance, ties broken as described at [`closer`], written to
+    /// index)` sorted by distance, ties broken as described at `closer`, written to
     /// `out`.
     pub fn k_nearest(
         &self,
