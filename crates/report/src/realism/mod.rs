@@ -13,7 +13,7 @@
 //! - **spacing** and **models**: the dent (tip depth past the first contact when the
 //!   entry punctures) and the slope of force against depth after it, at 0.7, 1 and 1.4
 //!   times the liver scene's spacing, and for co-rotated Debunne, point based animation,
-//!   shape matching and mass-spring with the calibration `k = C E h`
+//!   neo-Hookean, shape matching and mass-spring with the calibration `k = C E h`
 //!   (`needlesim_core::calibration`), all with the liver's E and nu;
 //! - **speed**: the force at 25 mm for insertions at 2, 5, 10 and 20 mm/s (the tissue is
 //!   elastic: it should not depend on speed);
@@ -321,6 +321,7 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
     for model in [
         "debunne_corotated",
         "point_based",
+        "neo_hookean",
         "local_shape_matching",
         "mass_spring",
     ] {
@@ -328,8 +329,8 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         let mut mat = toml::Table::new();
         match model {
             "debunne_corotated" => mat = liver["material"].as_table().expect("material").clone(),
-            "point_based" => {
-                mat.insert("model".into(), "point_based".into());
+            "point_based" | "neo_hookean" => {
+                mat.insert("model".into(), model.into());
                 mat.insert("young_modulus".into(), young.into());
                 mat.insert("poisson_ratio".into(), nu.into());
                 mat.insert("hourglass".into(), 4.0.into());
