@@ -19,12 +19,6 @@ pub struct Threads<'a> {
 }
 
 impl<'a> Threads<'a> {
-    /// One thread.
-    pub const SERIAL: Threads<'static> = Threads {
-        pool: None,
-        parallel: false,
-    };
-
     /// Runs `f(first, &mut a[chunk], &mut b[chunk])` over consecutive chunks of [`CHUNK`]
     /// nodes.
     pub fn for_each_chunk<A: Send, B: Send>(
