@@ -1,12 +1,12 @@
 //! Shared by the benches: the model variants and the cube they step.
 
 use needlesim::core::scene::{
-    DebunneParams, MassSpringParams, ShapeMatchingForces, ShapeMatchingParams,
+    DebunneParams, MassSpringParams, NeoHookeanParams, ShapeMatchingForces, ShapeMatchingParams,
 };
 use needlesim::{Material, Scene};
 
 /// (label, material) of every model variant benched.
-pub const MODELS: [(&str, Material); 6] = [
+pub const MODELS: [(&str, Material); 7] = [
     (
         "msm",
         Material::MassSpring(MassSpringParams::new(100.0).with_spring_damping(0.01)),
@@ -24,6 +24,7 @@ pub const MODELS: [(&str, Material); 6] = [
         Material::DebunneMeshfree(DebunneParams::new(1e4, 0.45).with_corotated(true)),
     ),
     ("pba", Material::point_based(1e4, 0.45)),
+    ("nh", Material::NeoHookean(NeoHookeanParams::new(1e4, 0.45))),
 ];
 
 /// A free 10 cm cube of about `nodes` nodes, K = 16, stretched along x by `stretch`.

@@ -40,6 +40,7 @@ pub use crate::models::debunne_meshfree::DebunneParams;
 pub use crate::models::local_shape_matching::{ShapeMatchingForces, ShapeMatchingParams};
 pub use crate::models::mass_spring::{MassSpringParams, SpringShare};
 pub use crate::models::mls::{lame, NodeVolumes};
+pub use crate::models::neo_hookean::NeoHookeanParams;
 pub use crate::models::point_based::PointBasedParams;
 pub use crate::models::Material;
 pub use files::{check_input_file, MAX_SCENE_FILE_BYTES, MAX_SURFACE_FILE_BYTES};
