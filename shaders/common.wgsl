@@ -15,7 +15,7 @@ struct Params {
     mu: f32,
     volume_stiffness: f32,
     hourglass: f32,
-    pad0: f32,
+    slot_stride: u32,
     pad3: f32,
     pad1: f32,
     pad2: f32,
@@ -26,6 +26,12 @@ const WORKGROUP: u32 = 64u;
 // Node handled by an invocation: dispatches wider than the x limit continue along y.
 fn node_index(gid: vec3<u32>) -> u32 {
     return gid.x + gid.y * params.groups_x * WORKGROUP;
+}
+
+// Element of slot s of node i in the per-slot arrays (neighbour index and weight, rest
+// length), stored slot-major so that a warp's threads read adjacent words (layout.rs).
+fn slot(i: u32, s: u32) -> u32 {
+    return s * params.slot_stride + i;
 }
 
 // Row-major 3x3 matrices are stored as mat3x3 whose columns hold the rows (so m[r][c] reads

@@ -34,11 +34,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var f = vec3<f32>(0.0);
     var m = vec3<f32>(0.0);
     for (var s = 0u; s < params.k; s++) {
-        let w = nb_weight[k * params.k + s];
+        let w = nb_weight[slot(k, s)];
         if w == 0.0 {
             continue;
         }
-        let i = nb_index[k * params.k + s];
+        let i = nb_index[slot(k, s)];
         let d0 = rest[i].xyz - x0k;
         let d = positions[i].xyz - xk;
         let qi = packed(i);

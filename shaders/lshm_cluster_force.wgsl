@@ -25,11 +25,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let x0j = rest[j].xyz;
     var f = centre[j].xyz + quat_rotate(rotation[j], shape_vector[j].xyz);
     for (var s = 0u; s < params.k; s++) {
-        let w = nb_weight[j * params.k + s];
+        let w = nb_weight[slot(j, s)];
         if w == 0.0 {
             continue;
         }
-        let i = nb_index[j * params.k + s];
+        let i = nb_index[slot(j, s)];
         let d = positions[i].xyz - xj;
         let q0 = x0j - rest[i].xyz;
         let r = quat_rotate(rotation[i], q0 + shape_vector[i].xyz);
@@ -48,11 +48,11 @@ fn mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     let x0j = rest[j].xyz;
     var f = centre[j].w * (centre[j].xyz + quat_rotate(rotation[j], shape_vector[j].xyz));
     for (var s = 0u; s < params.k; s++) {
-        let w = nb_weight[j * params.k + s];
+        let w = nb_weight[slot(j, s)];
         if w == 0.0 {
             continue;
         }
-        let i = nb_index[j * params.k + s];
+        let i = nb_index[slot(j, s)];
         let d = positions[i].xyz - xj;
         let q0 = x0j - rest[i].xyz;
         let r = quat_rotate(rotation[i], q0 + shape_vector[i].xyz);

@@ -21,7 +21,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let vi = velocities[i].xyz;
     var f = vec3<f32>(0.0);
     for (var s = 0u; s < params.k; s++) {
-        let slot = i * params.k + s;
+        let slot = slot(i, s);
         let w = nb_weight[slot];
         if w == 0.0 {
             continue;
@@ -60,7 +60,7 @@ fn mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     let mi = node_material[i];
     var f = vec3<f32>(0.0);
     for (var s = 0u; s < params.k; s++) {
-        let slot = i * params.k + s;
+        let slot = slot(i, s);
         let w = nb_weight[slot];
         if w == 0.0 {
             continue;

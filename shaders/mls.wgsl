@@ -37,11 +37,11 @@ fn gradient(i: u32) -> Gradient {
     var b = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
     var trace = 0.0;
     for (var s = 0u; s < params.k; s++) {
-        let w = nb_weight[i * params.k + s];
+        let w = nb_weight[slot(i, s)];
         if w == 0.0 {
             continue;
         }
-        let j = nb_index[i * params.k + s];
+        let j = nb_index[slot(i, s)];
         let d = positions[j].xyz - xi;
         let d0 = rest[j].xyz - x0i;
         let du = w * (d - d0);

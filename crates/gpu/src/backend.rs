@@ -6,6 +6,7 @@
 use crate::buffers::{storage, Buffers};
 use crate::context::{GpuContext, GpuError};
 use crate::kernels::{self, Pass, WORKGROUP};
+use crate::layout;
 use crate::params::Params;
 use crate::profile::{map_read, KernelTime, Profiler};
 use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
@@ -87,14 +88,22 @@ impl GpuBackend {
             mu: 0.0,
             volume_stiffness: 0.0,
             hourglass: 0.0,
-            pad: [0.0; 4],
+            slot_stride: capacity as u32,
+            pad: [0.0; 3],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
         let model: Vec<(ShapeArray, wgpu::Buffer)> = tissue
             .shape
             .bytes()
             .into_iter()
-            .map(|(array, bytes)| (array, b(array.name(), bytes)))
+            .map(|(array, bytes)| {
+                let buffer = if array.per_slot() {
+                    b(array.name(), &layout::to_slot_major(bytes, nb.k, capacity))
+                } else {
+                    b(array.name(), bytes)
+                };
+                (array, buffer)
+            })
             .collect();
         crate::models::write_params(&tissue.material, &mut params);
         let buffers = Buffers {
@@ -106,8 +115,14 @@ impl GpuBackend {
             positions: b("positions", bytemuck::cast_slice(&st.positions)),
             velocities: b("velocities", bytemuck::cast_slice(&st.velocities)),
             forces: b("forces", bytemuck::cast_slice(&st.forces)),
-            nb_index: b("neighbour_index", bytemuck::cast_slice(&nb.index)),
-            nb_weight: b("neighbour_weight", bytemuck::cast_slice(&nb.weight)),
+            nb_index: b(
+                "neighbour_index",
+                &layout::to_slot_major(bytemuck::cast_slice(&nb.index), nb.k, capacity),
+            ),
+            nb_weight: b(
+                "neighbour_weight",
+                &layout::to_slot_major(bytemuck::cast_slice(&nb.weight), nb.k, capacity),
+            ),
             model,
             readback: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("readback"),
@@ -371,6 +386,24 @@ impl GpuBackend {
         Ok(())
     }
 
+    /// Writes node-major elements `elements` (`data`, [`layout::ELEMENT`] bytes each) of a
+    /// per-slot array that the device stores slot-major: one write per slot.
+    fn write_per_slot(&self, buffer: &wgpu::Buffer, elements: Range<usize>, data: &[u8]) {
+        let k = self.params.k as usize;
+        let first = elements.start;
+        for run in layout::runs(elements, k) {
+            let bytes: Vec<u8> = (0..run.nodes.len())
+                .flat_map(|n| {
+                    let at = run.source(n, k, first) * layout::ELEMENT;
+                    data[at..at + layout::ELEMENT].iter().copied()
+                })
+                .collect();
+            self.ctx
+                .queue
+                .write_buffer(buffer, run.offset(self.capacity), &bytes);
+        }
+    }
+
     /// Copies `pieces` (at most the readback buffer's size in all) through the readback
     /// buffer in one submit and one mapping: one readback.
     fn copy_out(&self, pieces: &mut [Piece<'_>]) -> Result<(), SimError> {
@@ -537,12 +570,15 @@ impl Backend for GpuBackend {
     ) -> Result<(), SimError> {
         let k = self.params.k as usize;
         check_rows(first, index, weight, k, self.capacity)?;
-        let offset = (first * k * 4) as u64;
-        let q = &self.ctx.queue;
-        q.write_buffer(&self.buffers.nb_index, offset, bytemuck::cast_slice(index));
-        q.write_buffer(
+        let elements = first * k..first * k + index.len();
+        self.write_per_slot(
+            &self.buffers.nb_index,
+            elements.clone(),
+            bytemuck::cast_slice(index),
+        );
+        self.write_per_slot(
             &self.buffers.nb_weight,
-            offset,
+            elements,
             bytemuck::cast_slice(weight),
         );
         Ok(())
@@ -562,7 +598,10 @@ impl Backend for GpuBackend {
             target.map(|(_, b)| b.size() as usize),
         )?;
         if let Some((_, buffer)) = target {
-            if !data.is_empty() {
+            if array.per_slot() {
+                let first = offset / layout::ELEMENT;
+                self.write_per_slot(buffer, first..first + data.len() / layout::ELEMENT, data);
+            } else if !data.is_empty() {
                 self.ctx.queue.write_buffer(buffer, offset as u64, data);
             }
         }
@@ -586,6 +625,33 @@ impl Backend for GpuBackend {
         let Some((_, buffer)) = source else {
             return Ok(());
         };
-        self.read_pieces(vec![(buffer, offset as u64, out)])
+        if !array.per_slot() {
+            return self.read_pieces(vec![(buffer, offset as u64, out)]);
+        }
+        // Slot-major on the device: read each slot's run, then put the elements back in
+        // node-major order.
+        let first = offset / layout::ELEMENT;
+        let runs = layout::runs(
+            first..first + out.len() / layout::ELEMENT,
+            self.params.k as usize,
+        );
+        let mut parts: Vec<Vec<u8>> = runs
+            .iter()
+            .map(|r| vec![0u8; r.nodes.len() * layout::ELEMENT])
+            .collect();
+        let pieces = runs
+            .iter()
+            .zip(parts.iter_mut())
+            .map(|(r, part)| (buffer, r.offset(self.capacity), part.as_mut_slice()))
+            .collect();
+        self.read_pieces(pieces)?;
+        let k = self.params.k as usize;
+        for (run, part) in runs.iter().zip(&parts) {
+            for (n, element) in part.chunks_exact(layout::ELEMENT).enumerate() {
+                let at = run.source(n, k, first) * layout::ELEMENT;
+                out[at..at + layout::ELEMENT].copy_from_slice(element);
+            }
+        }
+        Ok(())
     }
 }

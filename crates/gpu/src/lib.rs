@@ -25,6 +25,7 @@ mod backend;
 mod buffers;
 mod context;
 pub mod kernels;
+mod layout;
 pub mod models;
 mod params;
 mod profile;

@@ -35,8 +35,11 @@ pub struct Params {
     pub volume_stiffness: f32,
     /// Hourglass alpha times mu, Pa (continuum models).
     pub hourglass: f32,
+    /// Elements between slot `s` and slot `s + 1` of a node in the per-slot arrays: the
+    /// capacity (they are stored slot-major, `crate::layout`).
+    pub slot_stride: u32,
     /// Padding to a 16-byte multiple.
-    pub pad: [f32; 4],
+    pub pad: [f32; 3],
 }
 
 #[cfg(test)]
@@ -77,6 +80,7 @@ mod tests {
             ("mu", offset_of!(Params, mu)),
             ("volume_stiffness", offset_of!(Params, volume_stiffness)),
             ("hourglass", offset_of!(Params, hourglass)),
+            ("slot_stride", offset_of!(Params, slot_stride)),
         ];
         for (name, offset) in &rust {
             let found = wgsl.iter().find(|(n, _)| n == name);

@@ -29,6 +29,14 @@ pub enum ShapeArray {
 }
 
 impl ShapeArray {
+    /// Whether the array holds one 4-byte element per neighbour slot (`capacity * K`,
+    /// node-major like the neighbour rows) rather than one entry per node. A backend may
+    /// store such arrays in another order (the GPU stores them slot-major); the byte
+    /// offsets of [`crate::Backend::write_shape_bytes`] always count node-major.
+    pub const fn per_slot(self) -> bool {
+        matches!(self, ShapeArray::RestLength)
+    }
+
     /// The array's name in reports and errors (`rest_length`, ...).
     pub const fn name(self) -> &'static str {
         match self {
