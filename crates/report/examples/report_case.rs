@@ -1,7 +1,7 @@
 //! Runs one case of the accuracy report and prints the result:
 //! `cargo run --release --example report_case -- <case> <model> <level> [dt fraction]`,
 //! case one of cantilever, frequency, stretch, indentation, sphere, column; model one of msm, lshm-node,
-//! lshm-cluster, deb, deb-corotated, pba; level 0 (coarsest) to 5.
+//! lshm-cluster, deb, deb-corotated, pba, nh; level 0 (coarsest) to 5.
 //!
 //! `cargo run --release --example report_case -- extreme <n> <model> [cube side]` runs
 //! extreme case n (0 twist, 1 squash, 2 stiff at 1 ms, 3 stiff at auto, 4 dt 10x, 5 needle

@@ -625,7 +625,7 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
         "Relative error of each case's main quantity (static cases at 0.5 x the estimated critical step, \
          relaxed until the quantity changes by less than 1e-3 over 1/omega_slow; frequency at every step \
          fraction listed; n/a: no oscillation found, the paper's shape matching forces need damping that \
-         overdamps the beam). Secondary errors: cantilever vs Euler-Bernoulli, stretch lateral strain vs nu, \
+         overdamps the beam). Secondary errors: cantilever vs Euler-Bernoulli, frequency vs Euler-Bernoulli, stretch lateral strain vs nu, \
          indentation displacement field (rms over the punch depth).\n"
     )
     .unwrap();

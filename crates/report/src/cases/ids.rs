@@ -157,7 +157,7 @@ impl CaseId {
     pub fn error_meaning(self) -> &'static str {
         match self {
             CaseId::Cantilever => "tip deflection vs Timoshenko",
-            CaseId::Frequency => "first bending period vs Euler-Bernoulli",
+            CaseId::Frequency => "first bending period vs 3D FEM eigenvalue",
             CaseId::Stretch => "end-plate stress vs E eps (St Venant-Kirchhoff for PBA)",
             CaseId::Indentation => "punch force vs scikit-fem P2",
             CaseId::Sphere => "strain of a ball under pressure vs Lame's solution",
