@@ -130,6 +130,7 @@ impl Backend for CpuBackend {
             &t.neighbours,
             n,
             threads,
+            t.step.dt,
             &mut s.forces,
         );
     }
@@ -148,6 +149,7 @@ impl Backend for CpuBackend {
             &mut t.state.velocities[..n],
             |i, x, v| integrate_node(x, v, forces[i], &params),
         );
+        t.shape.end_step();
         self.steps += 1;
     }
 

@@ -59,6 +59,18 @@ impl<'a> Threads<'a> {
         });
     }
 
+    /// Runs `f(i, &mut a[i], &mut b[i], &mut c[i])` for every node.
+    pub fn for_each_node3<A: Send, B: Send, C: Send>(
+        self,
+        a: &mut [A],
+        b: &mut [B],
+        c: &mut [C],
+        f: impl Fn(usize, &mut A, &mut B, &mut C) + Sync + Send,
+    ) {
+        let mut pairs: Vec<(&mut B, &mut C)> = b.iter_mut().zip(c.iter_mut()).collect();
+        self.for_each_node(a, &mut pairs[..], |i, x, (y, z)| f(i, x, y, z));
+    }
+
     /// Sets `out[i] = f(i)` for every node.
     pub fn map_nodes<A: Send>(self, out: &mut [A], f: impl Fn(usize) -> A + Sync + Send) {
         let mut unit = vec![(); out.len()];

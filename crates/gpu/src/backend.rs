@@ -39,6 +39,16 @@ pub struct GpuBackend {
     profiler: Option<Profiler>,
 }
 
+/// Refuses what the kernels do not compute (rather than running it elastic).
+fn check_supported(tissue: &Tissue) -> Result<(), GpuError> {
+    if !tissue.material.prony().is_empty() {
+        return Err(GpuError::Unsupported {
+            feature: "viscoelastic materials (Prony terms)",
+        });
+    }
+    Ok(())
+}
+
 /// Bytes of the largest buffer the tissue needs (for [`GpuContext::new`]).
 pub fn largest_buffer(tissue: &Tissue) -> u64 {
     tissue
@@ -52,12 +62,14 @@ pub fn largest_buffer(tissue: &Tissue) -> u64 {
 impl GpuBackend {
     /// Creates a device for `tissue` ([`GpuContext::new`]) and uploads it.
     pub fn new(tissue: &Tissue) -> Result<GpuBackend, GpuError> {
+        check_supported(tissue)?;
         let ctx = GpuContext::new(largest_buffer(tissue))?;
         GpuBackend::with_context(ctx, tissue)
     }
 
     /// Uploads `tissue` to an existing device and compiles only its model's kernels.
     pub fn with_context(ctx: GpuContext, tissue: &Tissue) -> Result<GpuBackend, GpuError> {
+        check_supported(tissue)?;
         let device = &ctx.device;
         let limits = device.limits();
         for a in tissue.allocations() {

@@ -48,6 +48,12 @@ pub enum GpuError {
         /// Adapter name.
         adapter: String,
     },
+    /// The scene asks for something the GPU kernels do not compute yet.
+    #[error("the GPU backend does not support {feature} yet: run this scene on the CPU backend")]
+    Unsupported {
+        /// What is missing.
+        feature: &'static str,
+    },
 }
 
 /// A device, its queue and what it is.

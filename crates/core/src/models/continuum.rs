@@ -5,8 +5,9 @@
 //! animation and the neo-Hookean model are such laws; the Debunne model adds a co-rotation
 //! frame and keeps its own shape.
 
-use super::mls::{ContinuumArrays, ContinuumConstants, NodeVolumes};
+use super::mls::{ContinuumArrays, ContinuumConstants, NodeVolumes, StressSplit};
 use super::traits::{BuildContext, ForceInput, ModelState, ShapeArray, ShapeRow};
+use super::viscoelastic::Prony;
 use crate::math::Vec4;
 use crate::neighbours::Neighbours;
 
@@ -27,6 +28,20 @@ pub trait ContinuumLaw: Copy + PartialEq + std::fmt::Debug + Send + Sync {
         volume: f32,
         c: &ContinuumConstants,
     ) -> [f32; 12];
+
+    /// The viscoelastic Prony series of the material (empty: elastic).
+    fn law_prony(&self) -> Prony;
+
+    /// Node `i`'s stress split for the viscoelastic update ([`StressSplit`]): the
+    /// elastic stress of [`ContinuumLaw::law_first_pass`] written as `push S + extra`.
+    fn law_split(
+        i: usize,
+        positions: &[Vec4],
+        rest: &[Vec4],
+        nb: &Neighbours,
+        inverse_moment: &[f32; 9],
+        c: &ContinuumConstants,
+    ) -> StressSplit;
 }
 
 /// The shape information of a [`ContinuumLaw`] model: its parameters and the continuum
@@ -51,7 +66,8 @@ impl<L: ContinuumLaw> ContinuumShape<L> {
     ) -> ContinuumShape<L> {
         ContinuumShape {
             params,
-            continuum: ContinuumArrays::build(rule, rest, nb, n, ctx),
+            continuum: ContinuumArrays::build(rule, rest, nb, n, ctx)
+                .with_prony(params.law_prony()),
         }
     }
 }
@@ -98,13 +114,40 @@ impl<L: ContinuumLaw> ModelState for ContinuumShape<L> {
             rest_position,
             inverse_moment,
             first_pass: first,
+            prony,
+            visco,
+            visco_next,
             ..
         } = &mut self.continuum;
         let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
-        input.threads.map_nodes(&mut first[..n], |i| {
-            let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
-            L::law_first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
-        });
+        if visco.is_empty() {
+            input.threads.map_nodes(&mut first[..n], |i| {
+                let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
+                L::law_first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
+            });
+        } else {
+            let coefficients = prony.coefficients(input.dt as f64);
+            let prev = &visco[..];
+            input
+                .threads
+                .for_each_node(&mut first[..n], &mut visco_next[..n], |i, out, next| {
+                    let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
+                    let split = L::law_split(i, pos, rest, nb, &a_inv[i], &c);
+                    *out = ContinuumArrays::visco_first_pass(
+                        &split,
+                        &prev[i],
+                        next,
+                        &coefficients,
+                        &a_inv[i],
+                        rest[i][3],
+                        c.hourglass,
+                    );
+                });
+        }
         self.continuum.gather_forces(input, forces);
+    }
+
+    fn end_step(&mut self) {
+        self.continuum.end_step();
     }
 }

@@ -42,8 +42,10 @@
 use super::local_shape_matching::{cluster_frame, rest_positions, shape_vector, shape_vectors};
 use super::mls::{
     default_hourglass, pack_first_pass, ContinuumArrays, ContinuumConstants, NodeVolumes,
+    StressSplit,
 };
 use super::mueller2016_rotation::default_iterations;
+use super::viscoelastic::{visco_bytes, Prony};
 use super::{
     row, BuildContext, ForceInput, ModelInfo, ModelState, ShapeArray, ShapeRow, TissueModel,
 };
@@ -77,6 +79,11 @@ pub struct DebunneParams {
     /// `density` or `uniform` (see [`NodeVolumes`]).
     #[serde(default)]
     pub node_volumes: NodeVolumes,
+    /// Viscoelastic Prony terms `[{ g, tau }, ...]` relaxing the (co-rotated) linear
+    /// stress ([`crate::models::viscoelastic`]); empty (the default): elastic. The young
+    /// modulus is then the instantaneous one.
+    #[serde(default, skip_serializing_if = "Prony::is_empty")]
+    pub viscoelastic: Prony,
 }
 
 impl DebunneParams {
@@ -90,7 +97,14 @@ impl DebunneParams {
             rotation_iterations: default_iterations(),
             hourglass: default_hourglass(),
             node_volumes: NodeVolumes::Cell,
+            viscoelastic: Prony::elastic(),
         }
+    }
+
+    /// `viscoelastic`: the Prony series.
+    pub const fn with_viscoelastic(mut self, viscoelastic: Prony) -> Self {
+        self.viscoelastic = viscoelastic;
+        self
     }
 
     /// `corotated`: co-rotate the linear model.
@@ -125,11 +139,17 @@ impl TissueModel for DebunneParams {
         tag: "debunne_meshfree",
         short_name: "deb",
         label: "Debunne meshfree",
-        structural_keys: &["corotated", "rotation_iterations", "node_volumes"],
+        structural_keys: &[
+            "corotated",
+            "rotation_iterations",
+            "node_volumes",
+            "viscoelastic",
+        ],
     };
 
     fn validate(&self, key: &str) -> Result<(), SceneError> {
         crate::validate::elastic_moduli(key, self.young_modulus, self.poisson_ratio)?;
+        self.viscoelastic.validate(key)?;
         crate::validate::rotation_iterations_in_range(key, self.rotation_iterations)?;
         crate::validate::non_negative_finite(&format!("{key}.hourglass"), self.hourglass)
     }
@@ -142,7 +162,11 @@ impl TissueModel for DebunneParams {
 
     /// Rest position, inverse moment and first pass (and the frame when co-rotated).
     fn shape_bytes_per_node(&self, _k: f64) -> f64 {
-        100.0 + if self.corotated { 32.0 } else { 0.0 }
+        100.0 + if self.corotated { 32.0 } else { 0.0 } + visco_bytes(&self.viscoelastic)
+    }
+
+    fn prony(&self) -> Prony {
+        self.viscoelastic
     }
 
     fn elastic_moduli(&self, _: f64, _: usize) -> Result<(f64, f64), UncalibratedNeighbours> {
@@ -156,7 +180,8 @@ impl TissueModel for DebunneParams {
         });
         Shape {
             params: *self,
-            continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx),
+            continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx)
+                .with_prony(self.viscoelastic),
             corotation,
         }
     }
@@ -259,6 +284,11 @@ impl ModelState for Shape {
         let one = [c.lambda, c.mu, c.hourglass, 0.0];
         // `[lambda, mu, alpha mu]` of node i.
         let constants = |i: usize| material.map_or(one, |m| m[i]);
+        if !self.continuum.visco.is_empty() {
+            self.visco_first_pass(input, &constants);
+            self.continuum.gather_forces(input, forces);
+            return;
+        }
         let ContinuumArrays {
             rest_position,
             inverse_moment,
@@ -300,6 +330,97 @@ impl ModelState for Shape {
             }
         }
         self.continuum.gather_forces(input, forces);
+    }
+
+    fn end_step(&mut self) {
+        self.continuum.end_step();
+    }
+}
+
+impl Shape {
+    /// The first pass of a viscoelastic material ([`crate::models::viscoelastic`]): the
+    /// linear stress of `J` (co-rotated: of `R^T F - I`, pushed by `R`) relaxes.
+    fn visco_first_pass(&mut self, input: &ForceInput, constants: &(dyn Fn(usize) -> Vec4 + Sync)) {
+        let ForceInput {
+            positions: pos,
+            nb,
+            n,
+            threads,
+            dt,
+            ..
+        } = *input;
+        let ContinuumArrays {
+            rest_position,
+            inverse_moment,
+            first_pass: first,
+            prony,
+            visco,
+            visco_next,
+            ..
+        } = &mut self.continuum;
+        let (rest, a_inv, prev) = (&rest_position[..], &inverse_moment[..], &visco[..]);
+        let coefficients = prony.coefficients(dt as f64);
+        let split = |i: usize, r: Option<&Mat3>, lambda: f32, mu: f32| {
+            let (j, trace) = super::mls::displacement_gradient(i, pos, rest, nb, &a_inv[i]);
+            let (s0, push) = match r {
+                None => (linear_stress(&j, lambda, mu), Mat3::IDENTITY),
+                Some(r) => {
+                    let f = super::point_based::deformation_gradient(&j);
+                    (
+                        linear_stress(&(r.transpose() * f - Mat3::IDENTITY), lambda, mu),
+                        *r,
+                    )
+                }
+            };
+            StressSplit {
+                s0,
+                push,
+                extra: Mat3::ZERO,
+                j,
+                trace,
+            }
+        };
+        match &mut self.corotation {
+            None => threads.for_each_node(&mut first[..n], &mut visco_next[..n], |i, out, next| {
+                let [lambda, mu, hg, _] = constants(i);
+                *out = ContinuumArrays::visco_first_pass(
+                    &split(i, None, lambda, mu),
+                    &prev[i],
+                    next,
+                    &coefficients,
+                    &a_inv[i],
+                    rest[i][3],
+                    hg,
+                );
+            }),
+            Some(Corotation {
+                shape_vector,
+                rotation,
+            }) => {
+                let (sv, iters) = (&shape_vector[..], self.params.rotation_iterations);
+                threads.for_each_node3(
+                    &mut first[..n],
+                    &mut rotation[..n],
+                    &mut visco_next[..n],
+                    |i, out, rot, next| {
+                        let (_, r) =
+                            cluster_frame(i, pos, rest, sv[i], nb, iters, Quat::from_array(*rot));
+                        *rot = r.to_array();
+                        let [lambda, mu, hg, _] = constants(i);
+                        let r = Mat3::from_quat(r);
+                        *out = ContinuumArrays::visco_first_pass(
+                            &split(i, Some(&r), lambda, mu),
+                            &prev[i],
+                            next,
+                            &coefficients,
+                            &a_inv[i],
+                            rest[i][3],
+                            hg,
+                        );
+                    },
+                );
+            }
+        }
     }
 }
 

@@ -29,6 +29,7 @@
 //! is taken as zero instead of being amplified by a near-zero eigenvalue.
 
 use super::traits::{row, BuildContext, ForceInput, ShapeArray, ShapeRow};
+use super::viscoelastic::{relax, Prony, ViscoCoefficients, MAX_PRONY_TERMS, SYM};
 use crate::math::{with_w, xyz, Vec4};
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Vec3};
@@ -121,7 +122,19 @@ pub struct ContinuumArrays {
     pub volume_rule: NodeVolumes,
     /// First-pass result of the current step ([`pack_first_pass`]).
     pub first_pass: Vec<[f32; 12]>,
+    /// The Prony series of a viscoelastic material (empty: elastic, and the two state
+    /// arrays below are empty).
+    pub prony: Prony,
+    /// The committed viscoelastic state per node ([`super::viscoelastic`]).
+    pub visco: Vec<ViscoRow>,
+    /// The state the last force evaluation computed, committed by
+    /// [`ContinuumArrays::end_step`].
+    pub visco_next: Vec<ViscoRow>,
 }
+
+/// One node's viscoelastic state: `S_0` and one tensor per Prony term, six floats each
+/// (rows have room for [`MAX_PRONY_TERMS`] terms).
+pub type ViscoRow = [f32; SYM * (1 + MAX_PRONY_TERMS)];
 
 impl ContinuumArrays {
     /// The arrays of the first `n` of `rest` with volumes by `rule`.
@@ -138,12 +151,55 @@ impl ContinuumArrays {
             rest_position: with_volumes(rest_position, node_volumes(rule, rest, nb, n, ctx)),
             volume_rule: rule,
             first_pass: vec![[0.0; 12]; rest.len()],
+            prony: Prony::elastic(),
+            visco: Vec::new(),
+            visco_next: Vec::new(),
         }
+    }
+
+    /// With the viscoelastic state of `prony` (none for an elastic material): every node
+    /// starts unstressed.
+    pub fn with_prony(mut self, prony: Prony) -> ContinuumArrays {
+        self.prony = prony;
+        let rows = if prony.is_empty() {
+            0
+        } else {
+            self.first_pass.len()
+        };
+        self.visco = vec![[0.0; SYM * (1 + MAX_PRONY_TERMS)]; rows];
+        self.visco_next = self.visco.clone();
+        self
+    }
+
+    /// Commits the viscoelastic state of the last force evaluation (a swap).
+    pub fn end_step(&mut self) {
+        if !self.visco.is_empty() {
+            std::mem::swap(&mut self.visco, &mut self.visco_next);
+        }
+    }
+
+    /// The first pass of node `i` of a viscoelastic material: relaxes the elastic stress
+    /// `s0` (material frame) with the node's committed state, writes its next state into
+    /// `next`, and packs `push S + extra` ([`pack_first_pass`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn visco_first_pass(
+        split: &StressSplit,
+        prev: &ViscoRow,
+        next: &mut ViscoRow,
+        coefficients: &ViscoCoefficients,
+        inverse_moment: &[f32; 9],
+        volume: f32,
+        hourglass: f32,
+    ) -> [f32; 12] {
+        let s = relax(&split.s0, prev, next, coefficients);
+        let p = split.push * s + split.extra;
+        pack_first_pass(&p, &split.j, split.trace, inverse_moment, volume, hourglass)
     }
 
     /// `rest_position`, `inverse_moment`, `first_pass`.
     pub fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
-        vec![
+        let mut v = vec![
             (
                 ShapeArray::RestPosition,
                 bytemuck::cast_slice(&self.rest_position[..]),
@@ -156,12 +212,16 @@ impl ContinuumArrays {
                 ShapeArray::FirstPass,
                 bytemuck::cast_slice(&self.first_pass[..]),
             ),
-        ]
+        ];
+        if !self.visco.is_empty() {
+            v.push((ShapeArray::Viscous, bytemuck::cast_slice(&self.visco[..])));
+        }
+        v
     }
 
     /// [`ContinuumArrays::arrays`], mutable.
     pub fn arrays_mut(&mut self) -> Vec<(ShapeArray, &mut [u8])> {
-        vec![
+        let mut v = vec![
             (
                 ShapeArray::RestPosition,
                 bytemuck::cast_slice_mut(&mut self.rest_position[..]),
@@ -174,7 +234,14 @@ impl ContinuumArrays {
                 ShapeArray::FirstPass,
                 bytemuck::cast_slice_mut(&mut self.first_pass[..]),
             ),
-        ]
+        ];
+        if !self.visco.is_empty() {
+            v.push((
+                ShapeArray::Viscous,
+                bytemuck::cast_slice_mut(&mut self.visco[..]),
+            ));
+        }
+        v
     }
 
     /// Node `i`'s inverse moment, and its rest position with its volume (a new node, or
@@ -196,6 +263,14 @@ impl ContinuumArrays {
             let v = added_node_volume(self.volume_rule, i, rest, nb, volume_scale);
             let r = rest[i];
             out.push(row(ShapeArray::RestPosition, i, &[[r[0], r[1], r[2], v]]));
+        }
+        if rest_position && !self.visco.is_empty() {
+            // A new node starts unstressed (its slot may hold a removed node's state).
+            out.push(row(
+                ShapeArray::Viscous,
+                i,
+                &[[0.0f32; SYM * (1 + MAX_PRONY_TERMS)]],
+            ));
         }
         out
     }
@@ -227,6 +302,23 @@ impl ContinuumArrays {
             .threads
             .map_nodes(forces, |i| gather_force(i, pos, rest, nb, first));
     }
+}
+
+/// A node's stress split for the viscoelastic update: `P = push S + extra`, with `S` the
+/// elastic stress in the material frame that relaxes and `extra` the part that does not
+/// (point based animation's volume term), and the gradient the first pass packs.
+#[derive(Debug, Clone, Copy)]
+pub struct StressSplit {
+    /// The elastic stress in the material frame (symmetric).
+    pub s0: Mat3,
+    /// What maps it to the first Piola-Kirchhoff stress (`I`, `R` or `F`).
+    pub push: Mat3,
+    /// A stress that stays elastic.
+    pub extra: Mat3,
+    /// The displacement gradient `J_i`.
+    pub j: Mat3,
+    /// `sum_j w_ij |x_ij|^2`, for the hourglass stiffness.
+    pub trace: f32,
 }
 
 /// Checks the keys every continuum model has; errors name `{key}.<parameter>`.

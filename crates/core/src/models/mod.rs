@@ -31,6 +31,7 @@ pub mod mls;
 pub mod mueller2016_rotation;
 pub mod neo_hookean;
 pub mod point_based;
+pub mod viscoelastic;
 
 mod traits;
 
@@ -96,6 +97,13 @@ macro_rules! define_models {
         pub const MODELS: &[ModelInfo] = &[$( <$params as TissueModel>::INFO, )*];
 
         impl Material {
+            /// The viscoelastic Prony series (empty: elastic).
+            pub fn prony(&self) -> viscoelastic::Prony {
+                match self {
+                    $( Material::$variant(p) => p.prony(), )*
+                }
+            }
+
             /// The model's registry entry.
             pub fn info(&self) -> ModelInfo {
                 match self {
@@ -403,6 +411,7 @@ impl ShapeInfo {
         nb: &Neighbours,
         n: usize,
         threads: Threads,
+        dt: f32,
         forces: &mut [Vec4],
     ) {
         let input = ForceInput {
@@ -412,7 +421,13 @@ impl ShapeInfo {
             node_material: self.node_material.as_deref(),
             n,
             threads,
+            dt,
         };
         self.model.state_mut().cpu_forces(&input, &mut forces[..n]);
+    }
+
+    /// Commits the step's model state ([`ModelState::end_step`]).
+    pub fn end_step(&mut self) {
+        self.model.state_mut().end_step();
     }
 }

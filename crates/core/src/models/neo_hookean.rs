@@ -30,10 +30,12 @@
 //! Shape information: that of the continuum models ([`ContinuumShape`]).
 
 use super::continuum::{ContinuumLaw, ContinuumShape};
+use super::mls::StressSplit;
 use super::mls::{
     default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, NodeVolumes,
 };
 use super::traits::{BuildContext, ModelInfo, TissueModel};
+use super::viscoelastic::{visco_bytes, Prony};
 use crate::calibration::UncalibratedNeighbours;
 use crate::error::SceneError;
 use crate::math::Vec4;
@@ -57,6 +59,11 @@ pub struct NeoHookeanParams {
     /// The volume `V_i` that weights each node's strain energy (see [`NodeVolumes`]).
     #[serde(default)]
     pub node_volumes: NodeVolumes,
+    /// Viscoelastic Prony terms `[{ g, tau }, ...]` relaxing the second Piola-Kirchhoff
+    /// stress ([`crate::models::viscoelastic`]); empty (the default): elastic. The young
+    /// modulus is then the instantaneous one.
+    #[serde(default, skip_serializing_if = "Prony::is_empty")]
+    pub viscoelastic: Prony,
 }
 
 impl NeoHookeanParams {
@@ -68,7 +75,14 @@ impl NeoHookeanParams {
             poisson_ratio,
             hourglass: default_hourglass(),
             node_volumes: NodeVolumes::Cell,
+            viscoelastic: Prony::elastic(),
         }
+    }
+
+    /// `viscoelastic`: the Prony series.
+    pub const fn with_viscoelastic(mut self, viscoelastic: Prony) -> Self {
+        self.viscoelastic = viscoelastic;
+        self
     }
 
     /// `hourglass`: the hourglass control alpha.
@@ -140,11 +154,12 @@ impl TissueModel for NeoHookeanParams {
         tag: "neo_hookean",
         short_name: "nh",
         label: "neo-Hookean",
-        structural_keys: &["node_volumes"],
+        structural_keys: &["node_volumes", "viscoelastic"],
     };
 
     fn validate(&self, key: &str) -> Result<(), SceneError> {
-        validate_continuum(key, self.young_modulus, self.poisson_ratio, self.hourglass)
+        validate_continuum(key, self.young_modulus, self.poisson_ratio, self.hourglass)?;
+        self.viscoelastic.validate(key)
     }
 
     /// `[lambda, mu, 0, alpha mu]` (point based animation's layout).
@@ -155,7 +170,11 @@ impl TissueModel for NeoHookeanParams {
 
     /// Rest position, inverse moment and first pass.
     fn shape_bytes_per_node(&self, _k: f64) -> f64 {
-        100.0
+        100.0 + visco_bytes(&self.viscoelastic)
+    }
+
+    fn prony(&self) -> Prony {
+        self.viscoelastic
     }
 
     fn elastic_moduli(&self, _: f64, _: usize) -> Result<(f64, f64), UncalibratedNeighbours> {
@@ -185,6 +204,30 @@ impl ContinuumLaw for NeoHookeanParams {
         c: &ContinuumConstants,
     ) -> [f32; 12] {
         first_pass(i, positions, rest, nb, inverse_moment, volume, c)
+    }
+
+    fn law_prony(&self) -> Prony {
+        self.viscoelastic
+    }
+
+    /// `S = F^-1 P` of [`stress`], pushed by `F`.
+    fn law_split(
+        i: usize,
+        positions: &[Vec4],
+        rest: &[Vec4],
+        nb: &Neighbours,
+        inverse_moment: &[f32; 9],
+        c: &ContinuumConstants,
+    ) -> StressSplit {
+        let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+        let f = j + Mat3::IDENTITY;
+        StressSplit {
+            s0: f.inverse() * stress(&f, c.lambda, c.mu),
+            push: f,
+            extra: Mat3::ZERO,
+            j,
+            trace,
+        }
     }
 }
 

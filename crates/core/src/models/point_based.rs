@@ -23,8 +23,10 @@
 use super::continuum::{ContinuumLaw, ContinuumShape};
 use super::mls::{
     default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, NodeVolumes,
+    StressSplit,
 };
 use super::traits::{BuildContext, ModelInfo, TissueModel};
+use super::viscoelastic::{visco_bytes, Prony};
 use crate::calibration::UncalibratedNeighbours;
 use crate::error::SceneError;
 use crate::math::Vec4;
@@ -53,6 +55,11 @@ pub struct PointBasedParams {
     /// `density` (the original method) or `uniform` (see [`NodeVolumes`]).
     #[serde(default)]
     pub node_volumes: NodeVolumes,
+    /// Viscoelastic Prony terms `[{ g, tau }, ...]` relaxing the Green-strain stress
+    /// ([`crate::models::viscoelastic`]); empty (the default): elastic. The young modulus
+    /// is then the instantaneous one.
+    #[serde(default, skip_serializing_if = "Prony::is_empty")]
+    pub viscoelastic: Prony,
 }
 
 impl PointBasedParams {
@@ -65,7 +72,14 @@ impl PointBasedParams {
             volume_stiffness: 0.0,
             hourglass: default_hourglass(),
             node_volumes: NodeVolumes::Cell,
+            viscoelastic: Prony::elastic(),
         }
+    }
+
+    /// `viscoelastic`: the Prony series.
+    pub const fn with_viscoelastic(mut self, viscoelastic: Prony) -> Self {
+        self.viscoelastic = viscoelastic;
+        self
     }
 
     /// `hourglass`: the hourglass control alpha.
@@ -104,11 +118,12 @@ impl TissueModel for PointBasedParams {
         tag: "point_based",
         short_name: "pba",
         label: "point based animation",
-        structural_keys: &["node_volumes"],
+        structural_keys: &["node_volumes", "viscoelastic"],
     };
 
     fn validate(&self, key: &str) -> Result<(), SceneError> {
         validate_continuum(key, self.young_modulus, self.poisson_ratio, self.hourglass)?;
+        self.viscoelastic.validate(key)?;
         crate::validate::non_negative_finite(
             &format!("{key}.volume_stiffness"),
             self.volume_stiffness,
@@ -121,9 +136,13 @@ impl TissueModel for PointBasedParams {
         [c.lambda, c.mu, c.volume_stiffness, c.hourglass]
     }
 
-    /// Rest position, inverse moment and first pass.
+    /// Rest position, inverse moment and first pass (and the viscoelastic state).
     fn shape_bytes_per_node(&self, _k: f64) -> f64 {
-        100.0
+        100.0 + visco_bytes(&self.viscoelastic)
+    }
+
+    fn prony(&self) -> Prony {
+        self.viscoelastic
     }
 
     fn elastic_moduli(&self, _: f64, _: usize) -> Result<(f64, f64), UncalibratedNeighbours> {
@@ -154,6 +173,42 @@ impl ContinuumLaw for PointBasedParams {
     ) -> [f32; 12] {
         first_pass(i, positions, rest, nb, inverse_moment, volume, c)
     }
+
+    fn law_prony(&self) -> Prony {
+        self.viscoelastic
+    }
+
+    /// `S` the Green-strain stress, pushed by `F`; the volume term stays elastic.
+    fn law_split(
+        i: usize,
+        positions: &[Vec4],
+        rest: &[Vec4],
+        nb: &Neighbours,
+        inverse_moment: &[f32; 9],
+        c: &ContinuumConstants,
+    ) -> StressSplit {
+        let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+        let f = deformation_gradient(&j);
+        StressSplit {
+            s0: green_stress(&j, c.lambda, c.mu),
+            push: f,
+            extra: volume_term(&f, c.volume_stiffness),
+            j,
+            trace,
+        }
+    }
+}
+
+/// Point based animation's volume term `k_v (det F - 1) cof F` (0 when `k_v` is 0).
+#[inline]
+fn volume_term(f: &Mat3, volume_stiffness: f32) -> Mat3 {
+    if volume_stiffness <= 0.0 {
+        return Mat3::ZERO;
+    }
+    let (r0, r1, r2) = (f.row(0), f.row(1), f.row(2));
+    let cof = [r1.cross(r2), r2.cross(r0), r0.cross(r1)];
+    let det = r0.dot(cof[0]);
+    Mat3::from_cols(cof[0], cof[1], cof[2]).transpose() * (volume_stiffness * (det - 1.0))
 }
 
 /// `I + J`.

@@ -26,6 +26,10 @@ pub enum ShapeArray {
     FirstPass,
     /// Per-node material parameters ([`super::material_row`]), only with several materials.
     NodeMaterial,
+    /// The viscoelastic state of the continuum models with Prony terms
+    /// ([`super::viscoelastic`]): per node `S_0` and one tensor per term, committed at the
+    /// end of each step.
+    Viscous,
 }
 
 impl ShapeArray {
@@ -48,6 +52,7 @@ impl ShapeArray {
             ShapeArray::InverseMoment => "inverse_moment",
             ShapeArray::FirstPass => "first_pass",
             ShapeArray::NodeMaterial => "node_material",
+            ShapeArray::Viscous => "viscous_state",
         }
     }
 }
@@ -121,6 +126,11 @@ pub trait TissueModel:
         None
     }
 
+    /// The viscoelastic Prony series ([`super::viscoelastic`]); empty (elastic) by default.
+    fn prony(&self) -> super::viscoelastic::Prony {
+        super::viscoelastic::Prony::elastic()
+    }
+
     /// Adjusts the neighbour weights of the first `n` nodes before anything is built from
     /// them (mass-spring's spring shares); nothing by default.
     fn prepare_neighbours(
@@ -152,6 +162,8 @@ pub struct ForceInput<'a> {
     pub n: usize,
     /// Where the kernels run.
     pub threads: Threads<'a>,
+    /// The time step in s (the viscoelastic update needs it).
+    pub dt: f32,
 }
 
 /// A model's shape information: its arrays and parameters, and what it computes from them.
@@ -185,6 +197,11 @@ pub trait ModelState {
 
     /// The elastic (and damping) force on each of the first `input.n` nodes.
     fn cpu_forces(&mut self, input: &ForceInput, forces: &mut [Vec4]);
+
+    /// Commits what the last force evaluation computed for the next step (the
+    /// viscoelastic state); called once per step, after the integration. Nothing by
+    /// default.
+    fn end_step(&mut self) {}
 }
 
 /// What building shape information needs besides positions and neighbours.
