@@ -16,9 +16,11 @@ struct Params {
     volume_stiffness: f32,
     hourglass: f32,
     slot_stride: u32,
-    pad3: f32,
+    visco_terms: u32,
+    visco_g_inf: f32,
     pad1: f32,
-    pad2: f32,
+    visco_a: vec4<f32>,
+    visco_b: vec4<f32>,
 }
 
 const WORKGROUP: u32 = 64u;

@@ -75,3 +75,38 @@ fn deb_corotated_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = node_material[i];
     deb_rotated_node(i, rotation[i], m.x, m.y, m.z);
 }
+
+// Viscoelastic: the linear stress relaxes (mls.wgsl::relax_stress); co-rotated, the stress
+// of R^T F - I relaxes and is pushed by R, the rotation `deb_frame` stored just before.
+@compute @workgroup_size(64)
+fn deb_linear_visco(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    let g = gradient(i);
+    store(i, relax_stress(i, linear_stress(g.j, params.lambda, params.mu)), g, rest[i].w, params.hourglass);
+}
+
+@compute @workgroup_size(64)
+fn deb_linear_visco_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    let m = node_material[i];
+    let g = gradient(i);
+    store(i, relax_stress(i, linear_stress(g.j, m.x, m.y)), g, rest[i].w, m.z);
+}
+
+@compute @workgroup_size(64)
+fn deb_corotated_visco(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    let r = quat_to_mat(rotation[i]);
+    let g = gradient(i);
+    let s = linear_stress(mat_mul(transpose(r), g.j + identity()) - identity(), params.lambda, params.mu);
+    store(i, mat_mul(r, relax_stress(i, s)), g, rest[i].w, params.hourglass);
+}

@@ -71,3 +71,56 @@ fn store(i: u32, p: mat3x3<f32>, g: Gradient, vol: f32, hourglass: f32) {
     first_pass[3u * i + 2u] = vec4<f32>(o2.z, c, 0.0, 0.0);
 }
 
+
+// Viscoelastic state (models/viscoelastic.rs): per node a row of VISCO_ROW floats, S_0 and
+// one symmetric tensor per Prony term, six floats each ([xx, yy, zz, xy, yz, zx]). Rows
+// 0..capacity hold the committed state, rows capacity..2 capacity the next one, which
+// `visco_commit` copies over after the step.
+@group(0) @binding(11) var<storage, read_write> visco: array<f32>;
+
+const VISCO_ROW: u32 = 30u;
+
+fn to_sym(m: mat3x3<f32>) -> array<f32, 6> {
+    return array<f32, 6>(m[0].x, m[1].y, m[2].z, 0.5 * (m[0].y + m[1].x), 0.5 * (m[1].z + m[2].y), 0.5 * (m[2].x + m[0].z));
+}
+
+// The relaxed stress g_inf S_0 + sum h_i of node i's elastic stress s0 (material frame),
+// writing its next state (viscoelastic.rs::relax).
+fn relax_stress(i: u32, s0: mat3x3<f32>) -> mat3x3<f32> {
+    let s = to_sym(s0);
+    let prev = VISCO_ROW * i;
+    let next = VISCO_ROW * (params.slot_stride + i);
+    var total = array<f32, 6>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for (var k = 0u; k < 6u; k++) {
+        total[k] = params.visco_g_inf * s[k];
+    }
+    for (var t = 0u; t < params.visco_terms; t++) {
+        let at = 6u * (t + 1u);
+        for (var k = 0u; k < 6u; k++) {
+            let h = params.visco_a[t] * visco[prev + at + k] + params.visco_b[t] * (s[k] - visco[prev + k]);
+            visco[next + at + k] = h;
+            total[k] += h;
+        }
+    }
+    for (var k = 0u; k < 6u; k++) {
+        visco[next + k] = s[k];
+    }
+    return mat3x3<f32>(
+        vec3<f32>(total[0], total[3], total[5]),
+        vec3<f32>(total[3], total[1], total[4]),
+        vec3<f32>(total[5], total[4], total[2]),
+    );
+}
+
+// Commits the viscoelastic state the step's first pass computed.
+@compute @workgroup_size(64)
+fn visco_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    let used = 6u * (1u + params.visco_terms);
+    for (var k = 0u; k < used; k++) {
+        visco[VISCO_ROW * i + k] = visco[VISCO_ROW * (params.slot_stride + i) + k];
+    }
+}

@@ -39,3 +39,40 @@ fn neo_hookean_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     let m = node_material[i];
     neo_hookean_node(i, m.x, m.y, m.w);
 }
+
+// Viscoelastic: S = F^-1 P relaxes (mls.wgsl::relax_stress), P = F S.
+fn neo_hookean_visco_node(i: u32, lambda: f32, mu: f32, hourglass: f32) {
+    let g = gradient(i);
+    let f = g.j + identity();
+    let cof = mat3x3<f32>(cross(f[1], f[2]), cross(f[2], f[0]), cross(f[0], f[1]));
+    let det = dot(f[0], cof[0]);
+    var l = log(J_MIN) + (det - J_MIN) / J_MIN;
+    var dl = 1.0 / J_MIN;
+    if det >= J_MIN {
+        l = log(det);
+        dl = 1.0 / det;
+    }
+    let p0 = mu * f + ((lambda * l - mu) * dl) * cof;
+    // F^-1 = cof^T / det.
+    let s = relax_stress(i, mat_mul(transpose(cof) * (1.0 / det), p0));
+    store(i, mat_mul(f, s), g, rest[i].w, hourglass);
+}
+
+@compute @workgroup_size(64)
+fn neo_hookean_visco(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    neo_hookean_visco_node(i, params.lambda, params.mu, params.hourglass);
+}
+
+@compute @workgroup_size(64)
+fn neo_hookean_visco_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    let m = node_material[i];
+    neo_hookean_visco_node(i, m.x, m.y, m.w);
+}

@@ -2,8 +2,9 @@
 //! `needlesim_core::models::viscoelastic`) against the closed forms of the Prony series,
 //! which do not come from our code: a cube's plate reaction relaxing under a held
 //! compression, its creep under a held pressure, and the phase lag of its reaction under a
-//! harmonic compression; plus bad input, the GPU's refusal, and a checkpoint taken
-//! mid-relaxation with a needle inside.
+//! harmonic compression, each on the CPU and on the GPU (lavapipe in CI); plus bad input,
+//! the one combination the GPU refuses, and a checkpoint taken mid-relaxation with a
+//! needle inside.
 
 mod common;
 
@@ -14,6 +15,7 @@ use needlesim::core::scene::{
     Axis, Components, DebunneParams, FixedSelection, LoadSpec, NeoHookeanParams, NodeSet,
     PointBasedParams, Prescribed,
 };
+use needlesim::gpu::{GpuBackend, GpuError};
 use needlesim::needle::{Checkpoint, Simulation};
 use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, Threading, Tissue};
 use std::path::Path;
@@ -68,10 +70,38 @@ fn cube(material: Material, damping: f64) -> needlesim::core::SceneBuilder {
         )
 }
 
-fn start(scene: &Scene) -> Simulation {
+/// Where the tests run: all CPU threads, and the GPU when wgpu finds an adapter (lavapipe
+/// in CI, where `NEEDLESIM_REQUIRE_GPU` makes a missing adapter a failure).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum On {
+    Cpu,
+    Gpu,
+}
+
+fn backend(tissue: Tissue, on: On) -> Option<Box<dyn Backend>> {
+    match on {
+        On::Cpu => Some(Box::new(
+            CpuBackend::new(tissue, Threading::Parallel).unwrap(),
+        )),
+        On::Gpu => match GpuBackend::new(&tissue) {
+            Ok(g) => Some(Box::new(g)),
+            Err(GpuError::NoAdapter(m)) if std::env::var("NEEDLESIM_REQUIRE_GPU").is_err() => {
+                eprintln!("GPU skipped, no adapter: {m}");
+                None
+            }
+            Err(e) => panic!("GPU backend: {e}"),
+        },
+    }
+}
+
+fn start_on(scene: &Scene, on: On) -> Option<Simulation> {
     let prep = Simulation::prepare(scene).unwrap();
-    let b = CpuBackend::new(prep.tissue.clone(), Threading::Parallel).unwrap();
-    prep.start(Box::new(b)).unwrap()
+    let b = backend(prep.tissue.clone(), on)?;
+    Some(prep.start(b).unwrap())
+}
+
+fn start(scene: &Scene) -> Simulation {
+    start_on(scene, On::Cpu).unwrap()
 }
 
 /// Least-squares slope of the y displacement against the rest y: the mean axial strain.
@@ -98,12 +128,15 @@ fn axial_strain(sim: &mut Simulation) -> f64 {
 /// the cube's slowest mode; it adds a drag proportional to the nodes' velocity, which is
 /// small once the ramp ends (the relaxation itself moves the nodes only laterally and
 /// slowly). Measured (dev machine, 729 nodes): largest error DEB and co-rotated DEB 0.24%,
-/// PBA 0.39%, neo-Hookean 0.39%.
+/// PBA 0.39%, neo-Hookean 0.39%, the same within 0.01 point on lavapipe.
 #[test]
 fn step_strain_relaxes_as_the_prony_series() {
     let p = two_terms();
     let (eps, area, ramp) = (-0.002, 0.01, 0.05);
-    for (label, material) in models(p) {
+    for (on, (label, material)) in [On::Cpu, On::Gpu]
+        .into_iter()
+        .flat_map(|on| models(p).into_iter().map(move |m| (on, m)))
+    {
         let scene = cube(material, 120.0)
             .prescribed(
                 Prescribed::displacement(NodeSet::above(Axis::Y, 0.099), [0.0, -0.0002, 0.0], ramp)
@@ -112,7 +145,9 @@ fn step_strain_relaxes_as_the_prony_series() {
             )
             .build()
             .unwrap();
-        let mut sim = start(&scene);
+        let Some(mut sim) = start_on(&scene, on) else {
+            continue;
+        };
         let mut worst: f64 = 0.0;
         for t in [0.2, 0.3, 0.5, 0.8, 1.2, 2.0, 3.0] {
             let steps = ((t - sim.time()) / sim.dt()).round() as u64;
@@ -122,13 +157,16 @@ fn step_strain_relaxes_as_the_prony_series() {
             let want = E * eps * area * ramp_response(&p, sim.time(), ramp);
             let err = (top / want - 1.0).abs();
             eprintln!(
-                "{label}: t {:.3} s reaction {top:.5} N, closed form {want:.5} N, error {:.3}%",
+                "{on:?} {label}: t {:.3} s reaction {top:.5} N, closed form {want:.5} N, error {:.3}%",
                 sim.time(),
                 100.0 * err
             );
             worst = worst.max(err);
         }
-        assert!(worst < 0.02, "{label}: worst relaxation error {worst}");
+        assert!(
+            worst < 0.02,
+            "{on:?} {label}: worst relaxation error {worst}"
+        );
     }
 }
 
@@ -140,12 +178,15 @@ fn step_strain_relaxes_as_the_prony_series() {
 /// moving node): with 120/s the strain lagged the closed form by 6.3% at 0.2 s, so this
 /// test damps with 20/s and ramps over 0.2 s (twice the slowest elastic period), which
 /// excites little ringing. Measured (dev machine): largest error DEB 0.40%, PBA 0.72%,
-/// neo-Hookean 0.61%.
+/// neo-Hookean 0.61%, the same on lavapipe.
 #[test]
 fn creep_under_a_held_pressure_follows_the_compliance() {
     let p = Prony::new(&[PronyTerm { g: 0.4, tau: 0.5 }]);
     let (pressure, ramp) = (20.0, 0.2);
-    for (label, material) in models(p) {
+    for (on, (label, material)) in [On::Cpu, On::Gpu]
+        .into_iter()
+        .flat_map(|on| models(p).into_iter().map(move |m| (on, m)))
+    {
         let scene = cube(material, 20.0)
             .load(
                 LoadSpec::pressure(NodeSet::in_box([-1.0, 0.099, -1.0], [1.0; 3]), pressure)
@@ -153,7 +194,9 @@ fn creep_under_a_held_pressure_follows_the_compliance() {
             )
             .build()
             .unwrap();
-        let mut sim = start(&scene);
+        let Some(mut sim) = start_on(&scene, on) else {
+            continue;
+        };
         let mut worst: f64 = 0.0;
         for t in [0.4, 0.6, 0.8, 1.0, 1.5, 2.5, 4.0] {
             let steps = ((t - sim.time()) / sim.dt()).round() as u64;
@@ -162,13 +205,13 @@ fn creep_under_a_held_pressure_follows_the_compliance() {
             let want = -pressure / E * creep_ramp_response(&p, sim.time(), ramp).unwrap();
             let err = (strain / want - 1.0).abs();
             eprintln!(
-                "{label}: t {:.3} s strain {strain:.4e}, closed form {want:.4e}, error {:.3}%",
+                "{on:?} {label}: t {:.3} s strain {strain:.4e}, closed form {want:.4e}, error {:.3}%",
                 sim.time(),
                 100.0 * err
             );
             worst = worst.max(err);
         }
-        assert!(worst < 0.02, "{label}: worst creep error {worst}");
+        assert!(worst < 0.02, "{on:?} {label}: worst creep error {worst}");
     }
 }
 
@@ -179,14 +222,17 @@ fn creep_under_a_held_pressure_follows_the_compliance() {
 /// agrees within 2 degrees (the issue's tolerance). Inertia adds a part in phase with the
 /// displacement and little damping (1/s) a small one in phase with the velocity (about
 /// 0.1 degree here, `rho L^2 c w / 2E`). Measured (dev machine): 14.09 degrees for every
-/// model against 14.04.
+/// model, on the CPU and on lavapipe, against 14.04.
 #[test]
 fn harmonic_strain_lags_by_the_loss_angle() {
     let p = Prony::new(&[PronyTerm { g: 0.4, tau: 0.5 }]);
     let omega = 1.0 / 0.5;
     let (re, im) = complex_modulus(&p, omega);
     let want = im.atan2(re).to_degrees();
-    for (label, material) in models(p) {
+    for (on, (label, material)) in [On::Cpu, On::Gpu]
+        .into_iter()
+        .flat_map(|on| models(p).into_iter().map(move |m| (on, m)))
+    {
         let scene = cube(material, 1.0).build().unwrap();
         let tissue = Tissue::from_scene(&scene).unwrap();
         let rest: Vec<[f32; 4]> = tissue.state.positions.clone();
@@ -194,7 +240,9 @@ fn harmonic_strain_lags_by_the_loss_angle() {
         let top: Vec<usize> = (0..n).filter(|&i| rest[i][1] > 0.099).collect();
         let bottom: Vec<usize> = (0..n).filter(|&i| rest[i][1] < 0.001).collect();
         let dt = tissue.step.dt as f64;
-        let mut b = CpuBackend::new(tissue, Threading::Parallel).unwrap();
+        let Some(mut b) = backend(tissue, on) else {
+            continue;
+        };
         let amplitude = 1e-4f64;
         let period = 2.0 * std::f64::consts::PI / omega;
         let steps = (4.0 * period / dt).round() as u64;
@@ -238,11 +286,11 @@ fn harmonic_strain_lags_by_the_loss_angle() {
         let bb = (fc * ss - fs * sc) / det;
         let got = bb.atan2(a).to_degrees();
         eprintln!(
-            "{label}: loss angle {got:.3} deg, closed form {want:.3} deg (storage part {a:.4e} N)"
+            "{on:?} {label}: loss angle {got:.3} deg, closed form {want:.3} deg (storage part {a:.4e} N)"
         );
         assert!(
             (got - want).abs() < 2.0,
-            "{label}: {got} against {want} degrees"
+            "{on:?} {label}: {got} against {want} degrees"
         );
     }
 }
@@ -272,18 +320,23 @@ fn bad_prony_terms_name_the_key() {
     assert_eq!(scene.material.prony(), two_terms());
 }
 
-/// The GPU kernels do not relax the stress yet: a viscoelastic scene is refused with a
-/// typed error rather than run elastic.
+/// The one combination the GPU kernels do not run (co-rotated viscoelastic Debunne with
+/// several materials: 9 storage buffers in one kernel, the device is asked for 8) is a
+/// typed error, not an elastic run. Checked without an adapter: the refusal comes first.
 #[test]
-fn the_gpu_refuses_a_viscoelastic_material() {
-    let scene = cube(models(two_terms())[0].1, 10.0).build().unwrap();
+fn the_gpu_refuses_corotated_viscoelastic_with_two_materials() {
+    let text = "[tissue]\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 125 }\n\
+                [material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\ncorotated = true\n\
+                viscoelastic = [{ g = 0.3, tau = 0.15 }]\n\
+                [[region]]\nname = \"stiff\"\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.1, 0.1] }\n\
+                material = { young_modulus = 2e4 }\n";
+    let scene = Scene::from_toml_str(text, Path::new(".")).unwrap();
     let tissue = Tissue::from_scene(&scene).unwrap();
-    match needlesim::gpu::GpuBackend::new(&tissue) {
-        Err(needlesim::gpu::GpuError::Unsupported { feature }) => {
-            assert!(feature.contains("viscoelastic"))
-        }
+    assert!(tissue.shape.node_material.is_some());
+    match GpuBackend::new(&tissue) {
+        Err(GpuError::Unsupported { feature }) => assert!(feature.contains("viscoelastic")),
         Err(e) => panic!("another error: {e}"),
-        Ok(_) => panic!("the GPU accepted a viscoelastic material"),
+        Ok(_) => panic!("the GPU accepted co-rotated viscoelastic Debunne with two materials"),
     }
 }
 

@@ -29,6 +29,8 @@ pub struct GpuBackend {
     buffers: Buffers,
     force_passes: Vec<Pass>,
     integrate: Pass,
+    /// Kernels after the integration (the viscoelastic commit).
+    end_step: Vec<Pass>,
     params: Params,
     capacity: usize,
     steps: u64,
@@ -41,12 +43,10 @@ pub struct GpuBackend {
 
 /// Refuses what the kernels do not compute (rather than running it elastic).
 fn check_supported(tissue: &Tissue) -> Result<(), GpuError> {
-    if !tissue.material.prony().is_empty() {
-        return Err(GpuError::Unsupported {
-            feature: "viscoelastic materials (Prony terms)",
-        });
+    match crate::models::unsupported(&tissue.shape) {
+        Some(feature) => Err(GpuError::Unsupported { feature }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Bytes of the largest buffer the tissue needs (for [`GpuContext::new`]).
@@ -101,7 +101,11 @@ impl GpuBackend {
             volume_stiffness: 0.0,
             hourglass: 0.0,
             slot_stride: capacity as u32,
-            pad: [0.0; 3],
+            visco_terms: 0,
+            visco_g_inf: 1.0,
+            pad: 0.0,
+            visco_a: [0.0; 4],
+            visco_b: [0.0; 4],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
         let model: Vec<(ShapeArray, wgpu::Buffer)> = tissue
@@ -111,6 +115,9 @@ impl GpuBackend {
             .map(|(array, bytes)| {
                 let buffer = if array.per_slot() {
                     b(array.name(), &layout::to_slot_major(bytes, nb.k, capacity))
+                } else if array == ShapeArray::Viscous {
+                    // The committed rows, then as many for the next state (mls.wgsl).
+                    b(array.name(), &[bytes, bytes].concat())
                 } else {
                     b(array.name(), bytes)
                 };
@@ -145,12 +152,14 @@ impl GpuBackend {
         };
         let force_passes = crate::models::force_passes(device, &tissue.shape, &buffers);
         let integrate = kernels::INTEGRATE_NODE.pass(device, &buffers);
+        let end_step = crate::models::end_step_passes(device, &tissue.shape, &buffers);
         let mut backend = GpuBackend {
             max_groups_x: device.limits().max_compute_workgroups_per_dimension,
             ctx,
             buffers,
             force_passes,
             integrate,
+            end_step,
             params,
             capacity,
             steps: 0,
@@ -207,7 +216,10 @@ impl GpuBackend {
                 .force_passes
                 .iter()
                 .take(if forces { n_force } else { 0 });
-            let last = integrate.then_some(&self.integrate);
+            let last = integrate
+                .then_some(std::iter::once(&self.integrate).chain(&self.end_step))
+                .into_iter()
+                .flatten();
             force.chain(last).enumerate().map(move |(k, p)| {
                 // The integration's index is after the force kernels'.
                 let id = if forces { k } else { n_force + k };
@@ -280,7 +292,7 @@ impl GpuBackend {
                 adapter: self.ctx.adapter.name.clone(),
             });
         }
-        let kernels = self.force_passes.len() + 1;
+        let kernels = self.force_passes.len() + 1 + self.end_step.len();
         let (device, queue) = (&self.ctx.device, &self.ctx.queue);
         let p = self.profiler.get_or_insert_with(|| {
             Profiler::new(device, queue, kernels, STEPS_PER_SUBMIT * kernels as u64)
@@ -309,6 +321,7 @@ impl GpuBackend {
             .force_passes
             .iter()
             .chain([&self.integrate])
+            .chain(&self.end_step)
             .map(|p| p.kernel.name)
             .collect();
         match &mut self.profiler {

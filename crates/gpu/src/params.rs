@@ -38,8 +38,16 @@ pub struct Params {
     /// Elements between slot `s` and slot `s + 1` of a node in the per-slot arrays: the
     /// capacity (they are stored slot-major, `crate::layout`).
     pub slot_stride: u32,
-    /// Padding to a 16-byte multiple.
-    pub pad: [f32; 3],
+    /// Prony terms of a viscoelastic material (0: elastic).
+    pub visco_terms: u32,
+    /// `g_inf = 1 - sum g_i` of the Prony series.
+    pub visco_g_inf: f32,
+    /// Padding to the next 16-byte boundary.
+    pub pad: f32,
+    /// `exp(-dt / tau_i)` of each Prony term.
+    pub visco_a: [f32; 4],
+    /// `g_i (tau_i / dt) (1 - a_i)` of each Prony term.
+    pub visco_b: [f32; 4],
 }
 
 #[cfg(test)]
@@ -81,6 +89,10 @@ mod tests {
             ("volume_stiffness", offset_of!(Params, volume_stiffness)),
             ("hourglass", offset_of!(Params, hourglass)),
             ("slot_stride", offset_of!(Params, slot_stride)),
+            ("visco_terms", offset_of!(Params, visco_terms)),
+            ("visco_g_inf", offset_of!(Params, visco_g_inf)),
+            ("visco_a", offset_of!(Params, visco_a)),
+            ("visco_b", offset_of!(Params, visco_b)),
         ];
         for (name, offset) in &rust {
             let found = wgsl.iter().find(|(n, _)| n == name);

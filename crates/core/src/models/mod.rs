@@ -403,7 +403,9 @@ impl ShapeInfo {
         v
     }
 
-    /// The model's force on each of the first `n` nodes into `forces[..n]`.
+    /// The model's force on each of the first `n` nodes into `forces[..n]` (`dt`: the
+    /// step, for the viscoelastic update).
+    #[allow(clippy::too_many_arguments)]
     pub fn cpu_forces(
         &mut self,
         positions: &[Vec4],

@@ -7,8 +7,9 @@ use super::MATERIAL;
 use crate::buffers::Binding::{self, *};
 use crate::kernels::{KernelSpec, COMMON};
 use needlesim_core::models::mls::ContinuumConstants;
+use needlesim_core::models::viscoelastic::Prony;
 use needlesim_core::models::ShapeArray::{
-    FirstPass, InverseMoment, RestPosition, Rotation, ShapeVector,
+    FirstPass, InverseMoment, RestPosition, Rotation, ShapeVector, Viscous,
 };
 
 /// The shared first-pass code a model's first-pass shader is appended to.
@@ -36,6 +37,56 @@ pub const FIRST_PASS_MIXED: [(u32, Binding); 8] = [
     FIRST_PASS[6],
     MATERIAL,
 ];
+
+/// The viscoelastic state (committed rows, then the next ones): `mls.wgsl::visco`.
+pub const VISCO: (u32, Binding) = (11, Model(Viscous));
+
+/// [`FIRST_PASS`] and the viscoelastic state.
+pub const FIRST_PASS_VISCO: [(u32, Binding); 8] = [
+    FIRST_PASS[0],
+    FIRST_PASS[1],
+    FIRST_PASS[2],
+    FIRST_PASS[3],
+    FIRST_PASS[4],
+    FIRST_PASS[5],
+    FIRST_PASS[6],
+    VISCO,
+];
+
+/// [`FIRST_PASS_MIXED`] and the viscoelastic state.
+pub const FIRST_PASS_VISCO_MIXED: [(u32, Binding); 9] = [
+    FIRST_PASS[0],
+    FIRST_PASS[1],
+    FIRST_PASS[2],
+    FIRST_PASS[3],
+    FIRST_PASS[4],
+    FIRST_PASS[5],
+    FIRST_PASS[6],
+    MATERIAL,
+    VISCO,
+];
+
+const COMMIT_BINDINGS: [(u32, Binding); 2] = [(0, Params), VISCO];
+
+/// `mls.wgsl::visco_commit`: copies the viscoelastic state the step computed over the
+/// committed one ([`ContinuumArrays::end_step`]), once per step after the integration.
+///
+/// [`ContinuumArrays::end_step`]: needlesim_core::models::mls::ContinuumArrays::end_step
+pub const VISCO_COMMIT: KernelSpec = KernelSpec {
+    name: "visco_commit",
+    sources: &[COMMON, MLS],
+    entry: "visco_commit",
+    bindings: &COMMIT_BINDINGS,
+};
+
+/// Writes the update coefficients of a Prony series for the step `params.dt`.
+pub fn write_prony(prony: &Prony, params: &mut crate::params::Params) {
+    let c = prony.coefficients(params.dt as f64);
+    params.visco_terms = c.len as u32;
+    params.visco_g_inf = c.g_inf;
+    params.visco_a = c.a;
+    params.visco_b = c.b;
+}
 
 /// The shape matching frame's arrays.
 pub const SHAPE_VECTOR: (u32, Binding) = (8, Model(ShapeVector));

@@ -6,7 +6,8 @@
 //! ([`FRAME`]), to stay within 8 storage buffers per kernel.
 
 use super::continuum::{
-    write_constants, FIRST_PASS, FIRST_PASS_MIXED, GATHER_FORCE, MLS, ROTATION, SHAPE_VECTOR,
+    write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
+    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, ROTATION, SHAPE_VECTOR, VISCO, VISCO_COMMIT,
 };
 use super::{GpuModel, MATERIAL};
 use crate::buffers::Binding;
@@ -83,6 +84,37 @@ pub const COROTATED_MIXED: KernelSpec = KernelSpec {
     bindings: &COROTATED_MIXED_BINDINGS,
 };
 
+const COROTATED_VISCO_BINDINGS: [(u32, Binding); 9] =
+    [F[0], F[1], F[2], F[3], F[4], F[5], F[6], ROTATION, VISCO];
+
+/// `debunne_meshfree.wgsl::deb_linear_visco`: [`LINEAR`] with the stress relaxed by the
+/// Prony series ([`needlesim_core::models::viscoelastic`]).
+pub const LINEAR_VISCO: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_linear_visco",
+    sources: SOURCES,
+    entry: "deb_linear_visco",
+    bindings: &FIRST_PASS_VISCO,
+};
+
+/// `debunne_meshfree.wgsl::deb_linear_visco_mixed`: [`LINEAR_VISCO`] with each node's
+/// constants.
+pub const LINEAR_VISCO_MIXED: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_linear_visco_mixed",
+    sources: SOURCES,
+    entry: "deb_linear_visco_mixed",
+    bindings: &FIRST_PASS_VISCO_MIXED,
+};
+
+/// `debunne_meshfree.wgsl::deb_corotated_visco`: the co-rotated stress relaxed by the
+/// Prony series, reading the rotations [`FRAME`] stored (the frame, the state and the
+/// first pass's arrays would exceed 8 storage buffers in one kernel).
+pub const COROTATED_VISCO: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_corotated_visco",
+    sources: SOURCES,
+    entry: "deb_corotated_visco",
+    bindings: &COROTATED_VISCO_BINDINGS,
+};
+
 impl GpuModel for DebunneParams {
     const KERNELS: &'static [&'static KernelSpec] = &[
         &LINEAR,
@@ -90,22 +122,45 @@ impl GpuModel for DebunneParams {
         &COROTATED,
         &FRAME,
         &COROTATED_MIXED,
+        &LINEAR_VISCO,
+        &LINEAR_VISCO_MIXED,
+        &COROTATED_VISCO,
         &GATHER_FORCE,
     ];
 
     fn write_params(&self, params: &mut crate::params::Params) {
         params.iterations = self.rotation_iterations;
         write_constants(self.constants(), params);
+        write_prony(&self.viscoelastic, params);
     }
 
+    /// Co-rotated, viscoelastic and with several materials is refused before
+    /// ([`GpuModel::unsupported`]: it would take 9 storage buffers).
     fn force_kernels(shape: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
-        let mut v: Vec<&'static KernelSpec> = match (shape.corotation.is_some(), mixed) {
-            (false, false) => vec![&LINEAR],
-            (false, true) => vec![&LINEAR_MIXED],
-            (true, false) => vec![&COROTATED],
-            (true, true) => vec![&FRAME, &COROTATED_MIXED],
+        let visco = !shape.continuum.visco.is_empty();
+        let mut v: Vec<&'static KernelSpec> = match (shape.corotation.is_some(), mixed, visco) {
+            (false, false, false) => vec![&LINEAR],
+            (false, true, false) => vec![&LINEAR_MIXED],
+            (true, false, false) => vec![&COROTATED],
+            (true, true, false) => vec![&FRAME, &COROTATED_MIXED],
+            (false, false, true) => vec![&LINEAR_VISCO],
+            (false, true, true) => vec![&LINEAR_VISCO_MIXED],
+            (true, _, true) => vec![&FRAME, &COROTATED_VISCO],
         };
         v.push(&GATHER_FORCE);
         v
+    }
+
+    fn unsupported(shape: &Shape, mixed: bool) -> Option<&'static str> {
+        (shape.corotation.is_some() && mixed && !shape.continuum.visco.is_empty())
+            .then_some("co-rotated viscoelastic Debunne with several materials")
+    }
+
+    fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {
+        if shape.continuum.visco.is_empty() {
+            Vec::new()
+        } else {
+            vec![&VISCO_COMMIT]
+        }
     }
 }

@@ -35,6 +35,20 @@ pub trait GpuModel: TissueModel {
     /// The force kernels of one step, in order, for `shape`; with several materials
     /// (`mixed`) the entry points that read each node's constants from `node_material`.
     fn force_kernels(shape: &Self::Shape, mixed: bool) -> Vec<&'static KernelSpec>;
+
+    /// The kernels that end a step, after the integration ([`ModelState::end_step`]);
+    /// none by default.
+    ///
+    /// [`ModelState::end_step`]: needlesim_core::models::ModelState::end_step
+    fn end_step_kernels(_shape: &Self::Shape) -> Vec<&'static KernelSpec> {
+        Vec::new()
+    }
+
+    /// What of `shape` the kernels cannot run (with several materials: `mixed`), in a
+    /// few words; `None` when they run all of it.
+    fn unsupported(_shape: &Self::Shape, _mixed: bool) -> Option<&'static str> {
+        None
+    }
 }
 
 macro_rules! define_gpu_models {
@@ -55,6 +69,26 @@ macro_rules! define_gpu_models {
             let mixed = shape.node_material.is_some();
             let specs = match &shape.model {
                 $( ModelShape::$variant(s) => <$params as GpuModel>::force_kernels(s, mixed), )*
+            };
+            specs.into_iter().map(|k| k.pass(device, b)).collect()
+        }
+
+        /// What of the tissue's model the kernels cannot run ([`GpuModel::unsupported`]).
+        pub(crate) fn unsupported(shape: &ShapeInfo) -> Option<&'static str> {
+            let mixed = shape.node_material.is_some();
+            match &shape.model {
+                $( ModelShape::$variant(s) => <$params as GpuModel>::unsupported(s, mixed), )*
+            }
+        }
+
+        /// The kernels that end each step of the tissue's model, bound to `b`.
+        pub(crate) fn end_step_passes(
+            device: &wgpu::Device,
+            shape: &ShapeInfo,
+            b: &Buffers,
+        ) -> Vec<Pass> {
+            let specs = match &shape.model {
+                $( ModelShape::$variant(s) => <$params as GpuModel>::end_step_kernels(s), )*
             };
             specs.into_iter().map(|k| k.pass(device, b)).collect()
         }
@@ -83,6 +117,7 @@ mod tests {
     fn every_kernel_validates_and_declares_its_bindings() {
         let mut specs = all_kernels();
         specs.push(&crate::kernels::INTEGRATE_NODE);
+        specs.push(&continuum::VISCO_COMMIT);
         // A kernel two models share (the continuum gather) is checked once.
         specs.sort_by_key(|s| s.name);
         specs.dedup_by_key(|s| s.name);

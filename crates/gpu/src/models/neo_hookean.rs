@@ -1,7 +1,10 @@
 //! The neo-Hookean model on the GPU: the first passes of `shaders/neo_hookean.wgsl` and
 //! the shared gather, the twins of [`needlesim_core::models::neo_hookean`].
 
-use super::continuum::{write_constants, FIRST_PASS, FIRST_PASS_MIXED, GATHER_FORCE, MLS};
+use super::continuum::{
+    write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
+    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, VISCO_COMMIT,
+};
 use super::GpuModel;
 use crate::kernels::{KernelSpec, COMMON};
 use needlesim_core::models::neo_hookean::{NeoHookeanParams, Shape};
@@ -27,14 +30,53 @@ pub const FIRST_MIXED: KernelSpec = KernelSpec {
     bindings: &FIRST_PASS_MIXED,
 };
 
+/// `neo_hookean.wgsl::neo_hookean_visco`: [`FIRST`] with the second Piola-Kirchhoff
+/// stress relaxed by the Prony series ([`needlesim_core::models::viscoelastic`]).
+pub const FIRST_VISCO: KernelSpec = KernelSpec {
+    name: "neo_hookean/visco",
+    sources: SOURCES,
+    entry: "neo_hookean_visco",
+    bindings: &FIRST_PASS_VISCO,
+};
+
+/// `neo_hookean.wgsl::neo_hookean_visco_mixed`: [`FIRST_VISCO`] with each node's constants.
+pub const FIRST_VISCO_MIXED: KernelSpec = KernelSpec {
+    name: "neo_hookean/visco_mixed",
+    sources: SOURCES,
+    entry: "neo_hookean_visco_mixed",
+    bindings: &FIRST_PASS_VISCO_MIXED,
+};
+
 impl GpuModel for NeoHookeanParams {
-    const KERNELS: &'static [&'static KernelSpec] = &[&FIRST, &FIRST_MIXED, &GATHER_FORCE];
+    const KERNELS: &'static [&'static KernelSpec] = &[
+        &FIRST,
+        &FIRST_MIXED,
+        &FIRST_VISCO,
+        &FIRST_VISCO_MIXED,
+        &GATHER_FORCE,
+    ];
 
     fn write_params(&self, params: &mut crate::params::Params) {
         write_constants(self.constants(), params);
+        write_prony(&self.viscoelastic, params);
     }
 
-    fn force_kernels(_: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
-        vec![if mixed { &FIRST_MIXED } else { &FIRST }, &GATHER_FORCE]
+    fn force_kernels(shape: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
+        let visco = !shape.continuum.visco.is_empty();
+        let first = match (visco, mixed) {
+            (false, false) => &FIRST,
+            (false, true) => &FIRST_MIXED,
+            (true, false) => &FIRST_VISCO,
+            (true, true) => &FIRST_VISCO_MIXED,
+        };
+        vec![first, &GATHER_FORCE]
+    }
+
+    fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {
+        if shape.continuum.visco.is_empty() {
+            Vec::new()
+        } else {
+            vec![&VISCO_COMMIT]
+        }
     }
 }

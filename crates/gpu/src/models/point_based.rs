@@ -2,7 +2,10 @@
 //! the shared gather, the twins of
 //! [`needlesim_core::models::point_based`].
 
-use super::continuum::{write_constants, FIRST_PASS, FIRST_PASS_MIXED, GATHER_FORCE, MLS};
+use super::continuum::{
+    write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
+    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, VISCO_COMMIT,
+};
 use super::GpuModel;
 use crate::kernels::{KernelSpec, COMMON};
 
@@ -28,14 +31,53 @@ pub const FIRST_MIXED: KernelSpec = KernelSpec {
     bindings: &FIRST_PASS_MIXED,
 };
 
+/// `point_based.wgsl::pba_visco`: [`FIRST`] with the Green-strain stress relaxed by the
+/// Prony series ([`needlesim_core::models::viscoelastic`]).
+pub const FIRST_VISCO: KernelSpec = KernelSpec {
+    name: "point_based/pba_visco",
+    sources: SOURCES,
+    entry: "pba_visco",
+    bindings: &FIRST_PASS_VISCO,
+};
+
+/// `point_based.wgsl::pba_visco_mixed`: [`FIRST_VISCO`] with each node's constants.
+pub const FIRST_VISCO_MIXED: KernelSpec = KernelSpec {
+    name: "point_based/pba_visco_mixed",
+    sources: SOURCES,
+    entry: "pba_visco_mixed",
+    bindings: &FIRST_PASS_VISCO_MIXED,
+};
+
 impl GpuModel for PointBasedParams {
-    const KERNELS: &'static [&'static KernelSpec] = &[&FIRST, &FIRST_MIXED, &GATHER_FORCE];
+    const KERNELS: &'static [&'static KernelSpec] = &[
+        &FIRST,
+        &FIRST_MIXED,
+        &FIRST_VISCO,
+        &FIRST_VISCO_MIXED,
+        &GATHER_FORCE,
+    ];
 
     fn write_params(&self, params: &mut crate::params::Params) {
         write_constants(self.constants(), params);
+        write_prony(&self.viscoelastic, params);
     }
 
-    fn force_kernels(_: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
-        vec![if mixed { &FIRST_MIXED } else { &FIRST }, &GATHER_FORCE]
+    fn force_kernels(shape: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
+        let visco = !shape.continuum.visco.is_empty();
+        let first = match (visco, mixed) {
+            (false, false) => &FIRST,
+            (false, true) => &FIRST_MIXED,
+            (true, false) => &FIRST_VISCO,
+            (true, true) => &FIRST_VISCO_MIXED,
+        };
+        vec![first, &GATHER_FORCE]
+    }
+
+    fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {
+        if shape.continuum.visco.is_empty() {
+            Vec::new()
+        } else {
+            vec![&VISCO_COMMIT]
+        }
     }
 }
