@@ -351,3 +351,27 @@ def test_models_come_from_the_registry_and_each_tag_builds_a_scene():
         sim.step(10)
         assert np.isfinite(sim.positions).all(), m["tag"]
 
+
+
+def test_fit_prony_recovers_the_series_of_a_simulated_relaxation():
+    """scenes/cube_relaxation_deb.toml relaxes as its two-term series; fit_prony finds every
+    g and tau within 5% from the plate force sampled every 2 ms with 0.2% noise (measured
+    0.8-4.3% over 10 seeds, 0.85% with this one), and bad input is a ValueError."""
+    sim = needlesim.Simulation.from_scene(ROOT / "scenes" / "cube_relaxation_deb.toml", threads=0)
+    steps = max(1, round(0.002 / sim.dt))
+    t, f = [], []
+    while sim.time < 4.0:
+        sim.step(steps)
+        t.append(sim.time)
+        f.append(-sim.reactions()["top"][1])
+    t, f = np.array(t), np.array(f)
+    noisy = f + np.random.default_rng(1).normal(0.0, 0.002 * f.max(), f.size)
+    fit = needlesim.fit_prony(t, noisy, terms=2, ramp=0.05, t_min=0.1)
+    for (g, tau), (g0, tau0) in zip(fit.terms, [(0.3, 0.15), (0.2, 1.0)]):
+        assert abs(g / g0 - 1) < 0.05 and abs(tau / tau0 - 1) < 0.05, fit
+    assert abs(fit.instantaneous / 0.2 - 1) < 0.02, fit
+    assert fit.toml().startswith("viscoelastic = [{ g = ")
+    with pytest.raises(ValueError, match="relax"):
+        needlesim.fit_prony(t, np.linspace(0.1, 0.2, t.size))
+    with pytest.raises(ValueError, match="terms"):
+        needlesim.fit_prony(t, f, terms=5)

@@ -25,6 +25,7 @@ Arrays are float64 (int64 for indices) copies of the simulation state, shaped
 
 from ._needlesim import HapticLoop, SineDevice, Simulation, adapter, models, __version__
 from ._fit import FitError, FitResult, fit
+from ._prony import PronyFit, fit_prony, relaxation
 from ._sweep import (
     OverrideError,
     SerialSweepWarning,
@@ -40,6 +41,7 @@ __all__ = [
     "FitResult",
     "HapticLoop",
     "OverrideError",
+    "PronyFit",
     "SerialSweepWarning",
     "SineDevice",
     "Simulation",
@@ -47,9 +49,11 @@ __all__ = [
     "adapter",
     "apply_overrides",
     "fit",
+    "fit_prony",
     "grid",
     "load_scene",
     "models",
+    "relaxation",
     "sweep",
     "__version__",
 ]

@@ -1,0 +1,119 @@
+"""Prony series from a measured relaxation curve: the terms of ``viscoelastic = [...]``.
+
+A relaxation test holds a strain (reached by a linear ramp of ``ramp`` seconds from
+``t = 0``, or a step for ``ramp = 0``) and records the force. For the generalized Maxwell
+material of needlesim (``needlesim_core::models::viscoelastic``) the force is
+
+    F(t) = F0 (1 / ramp) int_0^min(t, ramp) g(t - s) ds,
+    g(t) = g_inf + sum_i g_i exp(-t / tau_i),  g_inf = 1 - sum_i g_i,
+
+with F0 the force the full strain would give at once (the instantaneous modulus). The
+fit is a bounded nonlinear least squares (SciPy's trust-region reflective method) over
+F0, the shares g_i and log tau_i, started from several spreads of the time constants
+over the record (the problem has local minima where two terms swap or merge); the best
+fit is returned. Points before the end of the ramp can be left out with ``t_min``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import List, Optional, Sequence, Tuple
+
+import numpy as np
+
+__all__ = ["PronyFit", "fit_prony", "relaxation"]
+
+
+def relaxation(t: np.ndarray, terms: Sequence[Tuple[float, float]], ramp: float = 0.0) -> np.ndarray:
+    """The normalised response ``F(t) / F0`` of the series ``terms`` [(g, tau), ...] to a
+    strain ramped over ``ramp`` s then held (``ramp = 0``: a step, ``g(t)`` itself)."""
+    t = np.asarray(t, dtype=float)
+    g_inf = 1.0 - sum(g for g, _ in terms)
+    if ramp <= 0.0:
+        return g_inf + sum(g * np.exp(-t / tau) for g, tau in terms)
+    end = np.minimum(t, ramp)
+    v = g_inf * end
+    for g, tau in terms:
+        v = v + g * tau * (np.exp(-(t - end) / tau) - np.exp(-t / tau))
+    return v / ramp
+
+
+@dataclass
+class PronyFit:
+    """A fitted Prony series."""
+
+    terms: List[Tuple[float, float]]
+    """(g, tau in s) of each term, by increasing tau."""
+    instantaneous: float
+    """F0: the force of the full strain at once (instantaneous modulus), in the data's unit."""
+    rms: float
+    """Root mean square residual of the fit, in the data's unit."""
+
+    @property
+    def g_inf(self) -> float:
+        """The long-term share ``1 - sum g``."""
+        return 1.0 - sum(g for g, _ in self.terms)
+
+    def toml(self) -> str:
+        """The ``[material]`` line: ``viscoelastic = [{ g = ..., tau = ... }, ...]``."""
+        inner = ", ".join(f"{{ g = {g:.6g}, tau = {tau:.6g} }}" for g, tau in self.terms)
+        return f"viscoelastic = [{inner}]"
+
+
+def fit_prony(
+    time: Sequence[float],
+    force: Sequence[float],
+    terms: int = 2,
+    ramp: float = 0.0,
+    t_min: Optional[float] = None,
+) -> PronyFit:
+    """Fits ``terms`` Prony terms (1 to 4, the kernels' bound) to the relaxation record
+    ``force`` at ``time`` (s from the start of the ramp); see the module docs. The sign of
+    the force does not matter. ValueError for bad input (lengths, too few points, a
+    record that does not relax).
+    """
+    from scipy.optimize import least_squares
+
+    t = np.asarray(time, dtype=float)
+    f = np.asarray(force, dtype=float)
+    if t.shape != f.shape or t.ndim != 1:
+        raise ValueError(f"time and force must be 1-D of one length, got {t.shape} and {f.shape}")
+    if not 1 <= terms <= 4:
+        raise ValueError(f"terms must be 1 to 4 (the kernels' bound), got {terms}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(f))):
+        raise ValueError("time and force must be finite")
+    keep = t >= (ramp if t_min is None else t_min)
+    t, f = t[keep], f[keep]
+    if t.size < 2 * terms + 2:
+        raise ValueError(f"{t.size} points after t_min: too few for {terms} terms")
+    sign = 1.0 if np.mean(f) >= 0 else -1.0
+    f = sign * f
+    span = (max(t.min(), 1e-6), t.max())
+    if not f[0] > f[-1] > 0:
+        raise ValueError("the force must relax: larger at the start than at the end, same sign")
+
+    def unpack(x: np.ndarray) -> Tuple[float, List[Tuple[float, float]]]:
+        return x[0], [(x[1 + 2 * i], float(np.exp(x[2 + 2 * i]))) for i in range(terms)]
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        f0, series = unpack(x)
+        r = f0 * relaxation(t, series, ramp) - f
+        excess = sum(g for g, _ in series) - 0.999
+        return np.append(r, 1e3 * max(excess, 0.0) * f.max())
+
+    lo = [0.0] + [0.0, np.log(span[0] / 10)] * terms
+    hi = [10 * f.max()] + [0.999, np.log(span[1] * 10)] * terms
+    best = None
+    for spread in (1.0, 0.5, 0.25):
+        # Time constants log-spaced over the middle of the record, shares summing to 0.5.
+        a, b = np.log(span[0]), np.log(span[1])
+        mid, half = 0.5 * (a + b), 0.5 * (b - a) * spread
+        taus = np.linspace(mid - half, mid + half, terms + 2)[1:-1] if terms > 1 else [mid]
+        x0 = [f[0]] + [v for tau in taus for v in (0.5 / terms, tau)]
+        r = least_squares(residual, x0, bounds=(lo, hi), x_scale="jac", max_nfev=2000)
+        if best is None or r.cost < best.cost:
+            best = r
+    f0, series = unpack(best.x)
+    series.sort(key=lambda gt: gt[1])
+    rms = float(np.sqrt(np.mean((f0 * relaxation(t, series, ramp) - f) ** 2)))
+    return PronyFit(terms=[(float(g), float(tau)) for g, tau in series], instantaneous=float(sign * f0), rms=rms)
