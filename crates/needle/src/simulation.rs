@@ -102,6 +102,9 @@ struct NeedleParams {
     point_length: f64,
     /// Most time a membrane that gave takes to let go of its load, s.
     tear_time: f64,
+    /// The tissue's viscoelastic relaxation (empty: elastic): the grip of the slit on
+    /// the shaft relaxes with the age of the cut ([`crate::friction::per_length`]).
+    relaxation: needlesim_core::models::viscoelastic::Prony,
 }
 
 impl NeedleParams {

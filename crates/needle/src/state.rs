@@ -69,6 +69,9 @@ pub(crate) struct NeedleState {
     pub entry: Option<[f64; 3]>,
     /// Deepest tip depth past the entry so far (the crack front), m.
     pub cut_depth: f64,
+    /// `(depth, time)` each time the crack front advanced, in order, with a viscoelastic
+    /// tissue only (the age of the cut at a depth sets how far its grip has relaxed).
+    pub cut_times: Vec<(f64, f64)>,
     /// Axial force of the pinned (Surface or Exit) node on the needle in the last step, N
     /// (per-length model: of the contact patch while Touching the entry).
     pub pinned_axial: f64,
@@ -119,6 +122,7 @@ impl NeedleState {
             swept_from: [0.0; 3],
             entry: None,
             cut_depth: f64::NEG_INFINITY,
+            cut_times: Vec::new(),
             pinned_axial: 0.0,
             front: FrontElement::default(),
             patch: None,

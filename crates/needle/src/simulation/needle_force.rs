@@ -131,6 +131,26 @@ impl Simulation {
         }
     }
 
+    /// The share of its grip the tissue at `depth` past the entry still has: for a
+    /// viscoelastic tissue the relaxation function `g` ([`Prony::relaxation`]) at the time
+    /// since the crack front passed that depth (the slit the shaft holds open is a strain
+    /// held since then, so the contact pressure relaxes as the tissue's stress does);
+    /// 1 for an elastic tissue, and ahead of the crack front.
+    ///
+    /// [`Prony::relaxation`]: needlesim_core::models::viscoelastic::Prony::relaxation
+    fn grip_relaxation(&self, depth: f64) -> f64 {
+        let relaxation = &self.params.relaxation;
+        if relaxation.is_empty() {
+            return 1.0;
+        }
+        let cuts = &self.state.cut_times;
+        let i = cuts.partition_point(|&(d, _)| d < depth);
+        match cuts.get(i) {
+            Some(&(_, cut)) => relaxation.relaxation((self.stepper.time() - cut).max(0.0)),
+            None => 1.0,
+        }
+    }
+
     /// Friction on the needle nodes and the needle force (after the force evaluation).
     pub(super) fn apply_friction(&mut self, prev: &Needle, now: &Needle) -> Result<(), SimError> {
         let m = self.state.nodes.len();
@@ -191,6 +211,9 @@ impl Simulation {
             let tip_depth = self.depth_of(now.tip(), now.direction());
             // The tip cuts while it is at the deepest point it reached (the crack front).
             let cutting = tip_depth >= self.state.cut_depth - 1e-9;
+            if tip_depth > self.state.cut_depth && !self.params.relaxation.is_empty() {
+                self.state.cut_times.push((tip_depth, self.stepper.time()));
+            }
             self.state.cut_depth = self.state.cut_depth.max(tip_depth);
             // The tissue at the tip: the front node's own rest position (the material it
             // holds), moved by the local affine map over the front node's offset from
@@ -263,11 +286,17 @@ impl Simulation {
                     }
                 }
             }
+            let s_tip = (DVec3::from(now.tip()) - base).dot(t);
+            let grip: Vec<f64> = s
+                .iter()
+                .map(|&sk| self.grip_relaxation(tip_depth - (s_tip - sk)))
+                .collect();
             let ctx = Step {
                 prev,
                 now,
                 s: &s,
                 lengths: &lengths,
+                grip: &grip,
                 front,
                 cutting,
                 tip_depth,
@@ -432,7 +461,8 @@ impl Simulation {
                 FrictionState::Slip => pl.coefficient,
             };
             let v = xyz(self.state.velocities[k]).dot(t);
-            let cap = mu * (layer.grip * l + normal.length()) + pl.viscous * l * (v - u).abs();
+            let cap = mu * (layer.grip * c.grip[k] * l + normal.length())
+                + pl.viscous * l * (v - u).abs();
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
             let mut other = 0.0;
@@ -605,6 +635,9 @@ pub(super) struct Step<'a> {
     s: &'a [f64],
     /// Their shaft lengths, m.
     lengths: &'a [f64],
+    /// The share of the grip each node's tissue still has: the relaxation function of a
+    /// viscoelastic tissue at the age of the cut there, 1 for an elastic one.
+    grip: &'a [f64],
     /// The front node (`usize::MAX`: none).
     front: usize,
     /// Whether the tip is at the crack front.

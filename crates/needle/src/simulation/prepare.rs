@@ -65,6 +65,7 @@ impl Prepared {
                     radius: c.radius,
                     point_length: c.point_length(),
                     tear_time: c.tear_time(),
+                    relaxation: self.tissue.material.prony(),
                 },
             ),
             None => (
@@ -79,6 +80,7 @@ impl Prepared {
                     radius: crate::config::RADIUS_18G,
                     point_length: crate::config::default_point_length(crate::config::RADIUS_18G),
                     tear_time: 0.01,
+                    relaxation: self.tissue.material.prony(),
                 },
             ),
         };

@@ -17,6 +17,10 @@
 //!   (`needlesim_core::calibration`), all with the liver's E and nu;
 //! - **speed**: the force at 25 mm for insertions at 2, 5, 10 and 20 mm/s (the tissue is
 //!   elastic: it should not depend on speed);
+//! - **viscoelastic**: the same speeds with the Prony series of
+//!   `scenes/liver_insertion_viscoelastic.toml` (the force rises with speed), and a 3 s
+//!   hold after the slowest and the fastest insertion (the force relaxes; the time
+//!   constant of one exponential fitted to it);
 //! - **spin**: the force at 25 mm while the needle turns one revolution per second about
 //!   its axis, against the Coulomb prediction for friction on a helical path
 //!   ([`needlesim_needle::sheath`]).
@@ -33,7 +37,7 @@ mod write;
 
 use audit::median;
 pub use audit::{audit, rows, Audit, Row};
-pub use results::{DentSlope, EventEnergy, Realism};
+pub use results::{DentSlope, EventEnergy, Realism, ViscoStudy};
 pub use write::{markdown, write_realism};
 
 use crate::error::ReportError;
@@ -238,6 +242,118 @@ fn dent_slope(sim: &Simulation, label: String, insertion: f64) -> DentSlope {
     }
 }
 
+/// The liver scene `liver` with the Prony series of
+/// `scenes/liver_insertion_viscoelastic.toml`: the force at 25 mm at each of `speeds`
+/// (m/s, the tip travelling `travel`), and a 3 s hold after the insertion at the slowest
+/// and the fastest of them.
+fn viscoelastic_study(
+    liver: &toml::Table,
+    speeds: &[f64],
+    travel: f64,
+    progress: &mut dyn FnMut(&str),
+) -> Result<ViscoStudy, ReportError> {
+    let visco = read_scene("liver_insertion_viscoelastic")?;
+    let terms = visco["material"]["viscoelastic"].clone();
+    let mut base = liver.clone();
+    set(&mut base, "material.viscoelastic", terms.clone());
+    let mut study = ViscoStudy {
+        series: terms
+            .as_array()
+            .expect("an array of terms")
+            .iter()
+            .map(|t| {
+                (
+                    t["g"].as_float().expect("g"),
+                    t["tau"].as_float().expect("tau"),
+                )
+            })
+            .collect(),
+        ..ViscoStudy::default()
+    };
+    for &v in speeds {
+        let mut t = base.clone();
+        set(&mut t, "needle.keyframe.0.speed", v.into());
+        set(&mut t, "needle.keyframe.0.duration", (travel / v).into());
+        let sim = run(&t, Some(travel / v))?;
+        let f = force_at(&sim, 0.025);
+        progress(&format!(
+            "realism      viscoelastic liver at {:.0} mm/s: {f:.3} N at 25 mm",
+            1e3 * v
+        ));
+        study.speeds.push((v, f));
+    }
+    const HOLD: f64 = 3.0;
+    let (lo, hi) = (speeds[0], speeds[speeds.len() - 1]);
+    for v in [lo, hi] {
+        let mut t = base.clone();
+        set(&mut t, "needle.keyframe.0.speed", v.into());
+        set(&mut t, "needle.keyframe.0.duration", (travel / v).into());
+        set(&mut t, "needle.keyframe.1.duration", HOLD.into());
+        let stop = travel / v;
+        let sim = run(&t, Some(stop + HOLD))?;
+        // The hold from 50 ms after the stop (the speed ramp's end) to its end.
+        let held: Vec<(f64, f64)> = rows(&sim)
+            .iter()
+            .filter(|r| r.time >= stop + 0.05 && r.time <= stop + HOLD)
+            .map(|r| (r.time - stop, r.force))
+            .collect();
+        let (Some(first), Some(last)) = (held.first(), held.last()) else {
+            return Err(ReportError::Scene(
+                "the viscoelastic hold recorded nothing".into(),
+            ));
+        };
+        let tau = exponential_time_constant(&held);
+        progress(&format!(
+            "realism      viscoelastic liver held 3 s after {:.0} mm/s: {:.3} N -> {:.3} N ({:.1}%), fitted time constant {tau:.2} s",
+            1e3 * v,
+            first.1,
+            last.1,
+            100.0 * (last.1 / first.1 - 1.0)
+        ));
+        study.holds.push((v, first.1, last.1, tau));
+    }
+    Ok(study)
+}
+
+/// The time constant `T` of `A + B exp(-t / T)` fitted by least squares to the points
+/// `(t, y)`: for each `T` the best `A` and `B` are linear; `T` is found by a golden
+/// section search on `ln T` over 0.01 to 100 s.
+fn exponential_time_constant(points: &[(f64, f64)]) -> f64 {
+    let cost = |ln_t: f64| {
+        let tau = ln_t.exp();
+        let (mut n, mut se, mut see, mut sy, mut sey) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &(t, y) in points {
+            let e = (-t / tau).exp();
+            n += 1.0;
+            se += e;
+            see += e * e;
+            sy += y;
+            sey += e * y;
+        }
+        let det = n * see - se * se;
+        if det.abs() < 1e-300 {
+            return f64::INFINITY;
+        }
+        let b = (n * sey - se * sy) / det;
+        let a = (sy - b * se) / n;
+        points
+            .iter()
+            .map(|&(t, y)| (a + b * (-t / tau).exp() - y).powi(2))
+            .sum::<f64>()
+    };
+    let (mut lo, mut hi) = (0.01f64.ln(), 100f64.ln());
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..100 {
+        let (a, b) = (hi - r * (hi - lo), lo + r * (hi - lo));
+        if cost(a) < cost(b) {
+            hi = b;
+        } else {
+            lo = a;
+        }
+    }
+    (0.5 * (lo + hi)).exp()
+}
+
 /// The axial force (N) when the tip first passed `depth` (m).
 fn force_at(sim: &Simulation, depth: f64) -> f64 {
     rows(sim)
@@ -388,6 +504,8 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
         ));
         rep.speeds.push((v, f));
     }
+    // Viscoelastic tissue: the same speeds, and holds.
+    rep.viscoelastic = Some(viscoelastic_study(&liver, speeds, travel, progress)?);
     // The node events' energy, on the liver at the section's spacing.
     let ev = event_energy(&liver, duration)?;
     progress(&format!(
@@ -437,4 +555,23 @@ pub fn run_and_write(
     markdown(&mut md, &r);
     std::fs::write(out.join("realism.md"), md).map_err(io)?;
     Ok(r)
+}
+
+#[cfg(test)]
+mod tests {
+    /// The fitted time constant of a clean `A + B exp(-t / T)` is `T` (within 1e-4), and
+    /// 3 s of record resolve a constant longer than the record.
+    #[test]
+    fn one_exponential_fit_recovers_its_time_constant() {
+        for tau in [0.3, 1.86, 5.0] {
+            let points: Vec<(f64, f64)> = (0..300)
+                .map(|i| {
+                    let t = 0.05 + 0.01 * i as f64;
+                    (t, 0.9 + 0.4 * (-t / tau).exp())
+                })
+                .collect();
+            let got = super::exponential_time_constant(&points);
+            assert!((got / tau - 1.0).abs() < 1e-4, "{got} against {tau}");
+        }
+    }
 }

@@ -44,8 +44,23 @@ pub struct Realism {
     pub dent_half_space: f64,
     /// The energy of the node events of the liver scene's insertion.
     pub events: Option<EventEnergy>,
+    /// The liver scene with viscoelastic tissue (`scenes/liver_insertion_viscoelastic.toml`).
+    pub viscoelastic: Option<ViscoStudy>,
     /// Run time, s.
     pub seconds: f64,
+}
+
+/// The viscoelastic liver's speed and hold studies.
+#[derive(Debug, Clone, Default)]
+pub struct ViscoStudy {
+    /// The Prony series, (g, tau in s) per term.
+    pub series: Vec<(f64, f64)>,
+    /// Insertion speed (m/s), axial force at 25 mm (N).
+    pub speeds: Vec<(f64, f64)>,
+    /// Holds after insertions at these speeds (m/s): the axial force when the needle
+    /// stops (N), 3 s later (N), and the time constant (s) of `A + B exp(-t / T)` fitted
+    /// to the force over the hold.
+    pub holds: Vec<(f64, f64, f64, f64)>,
 }
 
 /// What the node events (a needle node added or removed while inside) put into the

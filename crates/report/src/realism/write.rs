@@ -65,6 +65,16 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
     for (v, f) in &r.speeds {
         writeln!(csv, "speed,{v},force_at_25mm_n,{f:e}").unwrap();
     }
+    if let Some(v) = &r.viscoelastic {
+        for (speed, f) in &v.speeds {
+            writeln!(csv, "viscoelastic_speed,{speed},force_at_25mm_n,{f:e}").unwrap();
+        }
+        for (speed, start, end, tau) in &v.holds {
+            writeln!(csv, "viscoelastic_hold,{speed},force_at_stop_n,{start:e}").unwrap();
+            writeln!(csv, "viscoelastic_hold,{speed},force_after_3s_n,{end:e}").unwrap();
+            writeln!(csv, "viscoelastic_hold,{speed},time_constant_s,{tau:e}").unwrap();
+        }
+    }
     for (rev, f, fr) in &r.spin {
         writeln!(csv, "spin,{rev},force_at_25mm_n,{f:e}").unwrap();
         writeln!(csv, "spin,{rev},friction_at_25mm_n,{fr:e}").unwrap();
@@ -218,6 +228,40 @@ pub fn markdown(md: &mut String, r: &Realism) {
         writeln!(md, "|---:|---:|").unwrap();
         for (v, f) in &r.speeds {
             writeln!(md, "| {:.0} | {f:.3} |", 1e3 * v).unwrap();
+        }
+    }
+    if let Some(v) = &r.viscoelastic {
+        let series: Vec<String> = v
+            .series
+            .iter()
+            .map(|(g, tau)| format!("g {g} at tau {tau} s"))
+            .collect();
+        writeln!(
+            md,
+            "\nViscoelastic tissue (the liver with the Prony series of `scenes/liver_insertion_viscoelastic.toml`: {}; the grip of the cut on the shaft relaxes with the age of the cut):\n",
+            series.join(", ")
+        )
+        .unwrap();
+        writeln!(md, "| speed mm/s | force at 25 mm N | elastic N |").unwrap();
+        writeln!(md, "|---:|---:|---:|").unwrap();
+        for (speed, f) in &v.speeds {
+            let elastic = r
+                .speeds
+                .iter()
+                .find(|(s, _)| s == speed)
+                .map_or("-".to_string(), |(_, e)| format!("{e:.3}"));
+            writeln!(md, "| {:.0} | {f:.3} | {elastic} |", 1e3 * speed).unwrap();
+        }
+        writeln!(md, "\n| held after mm/s | force at the stop N | after 3 s N | change | fitted time constant s |").unwrap();
+        writeln!(md, "|---:|---:|---:|---:|---:|").unwrap();
+        for (speed, start, end, tau) in &v.holds {
+            writeln!(
+                md,
+                "| {:.0} | {start:.3} | {end:.3} | {:+.1}% | {tau:.2} |",
+                1e3 * speed,
+                100.0 * (end / start - 1.0)
+            )
+            .unwrap();
         }
     }
     if let [(_, f0, fr0), (_, f1, fr1)] = r.spin[..] {
