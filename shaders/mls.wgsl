@@ -72,13 +72,18 @@ fn store(i: u32, p: mat3x3<f32>, g: Gradient, vol: f32, hourglass: f32) {
 }
 
 
-// Viscoelastic state (models/viscoelastic.rs): per node a row of VISCO_ROW floats, S_0 and
-// one symmetric tensor per Prony term, six floats each ([xx, yy, zz, xy, yz, zx]). Rows
-// 0..capacity hold the committed state, rows capacity..2 capacity the next one, which
-// `visco_commit` copies over after the step.
+// Viscoelastic state (models/viscoelastic.rs): per node VISCO_ROW floats, S_0 and one
+// symmetric tensor per Prony term, six floats each ([xx, yy, zz, xy, yz, zx]), stored
+// component-major (float k of node i at k * capacity + i, layout.rs: a warp's threads read
+// adjacent words); the committed state first, the next one after it (components
+// VISCO_ROW..2 VISCO_ROW), which `visco_commit` copies over after the step.
 @group(0) @binding(11) var<storage, read_write> visco: array<f32>;
 
 const VISCO_ROW: u32 = 30u;
+
+fn visco_at(i: u32, k: u32) -> u32 {
+    return k * params.slot_stride + i;
+}
 
 fn to_sym(m: mat3x3<f32>) -> array<f32, 6> {
     return array<f32, 6>(m[0].x, m[1].y, m[2].z, 0.5 * (m[0].y + m[1].x), 0.5 * (m[1].z + m[2].y), 0.5 * (m[2].x + m[0].z));
@@ -88,22 +93,22 @@ fn to_sym(m: mat3x3<f32>) -> array<f32, 6> {
 // writing its next state (viscoelastic.rs::relax).
 fn relax_stress(i: u32, s0: mat3x3<f32>) -> mat3x3<f32> {
     let s = to_sym(s0);
-    let prev = VISCO_ROW * i;
-    let next = VISCO_ROW * (params.slot_stride + i);
+    var s_prev = array<f32, 6>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     var total = array<f32, 6>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for (var k = 0u; k < 6u; k++) {
+        s_prev[k] = visco[visco_at(i, k)];
         total[k] = params.visco_g_inf * s[k];
     }
     for (var t = 0u; t < params.visco_terms; t++) {
         let at = 6u * (t + 1u);
         for (var k = 0u; k < 6u; k++) {
-            let h = params.visco_a[t] * visco[prev + at + k] + params.visco_b[t] * (s[k] - visco[prev + k]);
-            visco[next + at + k] = h;
+            let h = params.visco_a[t] * visco[visco_at(i, at + k)] + params.visco_b[t] * (s[k] - s_prev[k]);
+            visco[visco_at(i, VISCO_ROW + at + k)] = h;
             total[k] += h;
         }
     }
     for (var k = 0u; k < 6u; k++) {
-        visco[next + k] = s[k];
+        visco[visco_at(i, VISCO_ROW + k)] = s[k];
     }
     return mat3x3<f32>(
         vec3<f32>(total[0], total[3], total[5]),
@@ -121,6 +126,6 @@ fn visco_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let used = 6u * (1u + params.visco_terms);
     for (var k = 0u; k < used; k++) {
-        visco[VISCO_ROW * i + k] = visco[VISCO_ROW * (params.slot_stride + i) + k];
+        visco[visco_at(i, k)] = visco[visco_at(i, VISCO_ROW + k)];
     }
 }

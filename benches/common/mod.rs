@@ -1,12 +1,13 @@
 //! Shared by the benches: the model variants and the cube they step.
 
+use needlesim::core::models::viscoelastic::{Prony, PronyTerm};
 use needlesim::core::scene::{
     DebunneParams, MassSpringParams, NeoHookeanParams, ShapeMatchingForces, ShapeMatchingParams,
 };
 use needlesim::{Material, Scene};
 
 /// (label, material) of every model variant benched.
-pub const MODELS: [(&str, Material); 7] = [
+pub const MODELS: [(&str, Material); 8] = [
     (
         "msm",
         Material::MassSpring(MassSpringParams::new(100.0).with_spring_damping(0.01)),
@@ -25,7 +26,18 @@ pub const MODELS: [(&str, Material); 7] = [
     ),
     ("pba", Material::point_based(1e4, 0.45)),
     ("nh", Material::NeoHookean(NeoHookeanParams::new(1e4, 0.45))),
+    // Debunne with two Prony terms: the cost of the viscoelastic state.
+    (
+        "deb-visco",
+        Material::DebunneMeshfree(DebunneParams::new(1e4, 0.45).with_viscoelastic(PRONY)),
+    ),
 ];
+
+/// The Prony series of the viscoelastic variant: two terms.
+const PRONY: Prony = Prony::new_const([
+    PronyTerm { g: 0.3, tau: 0.15 },
+    PronyTerm { g: 0.2, tau: 1.0 },
+]);
 
 /// A free 10 cm cube of about `nodes` nodes, K = 16, stretched along x by `stretch`.
 pub fn cube(material: Material, nodes: usize, dt: f64, stretch: f64) -> Scene {

@@ -10,6 +10,7 @@ use crate::layout;
 use crate::params::Params;
 use crate::profile::{map_read, KernelTime, Profiler};
 use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
+use needlesim_core::models::mls::ViscoRow;
 use needlesim_core::models::ShapeArray;
 use needlesim_core::{Backend, NodeField, NodeSelection, SimError, Tissue, Vec4};
 use std::ops::Range;
@@ -41,6 +42,28 @@ pub struct GpuBackend {
     profiler: Option<Profiler>,
 }
 
+/// The device buffers the tissue needs, by name: its arrays, with the viscoelastic
+/// state's two copies in one buffer (`mls.wgsl::visco`).
+fn device_allocations(tissue: &Tissue) -> Vec<needlesim_core::models::ArrayInfo> {
+    let mut out = tissue.allocations();
+    let next = out
+        .iter()
+        .position(|a| a.name == needlesim_core::models::VISCOUS_NEXT);
+    if let Some(k) = next {
+        let extra = out.remove(k).bytes;
+        if let Some(v) = out
+            .iter_mut()
+            .find(|a| a.name == ShapeArray::Viscous.name())
+        {
+            v.bytes += extra;
+        }
+    }
+    out
+}
+
+/// Floats of one node's viscoelastic state row (`mls.wgsl::VISCO_ROW`).
+const VISCO_ROW: usize = std::mem::size_of::<ViscoRow>() / 4;
+
 /// Refuses what the kernels do not compute (rather than running it elastic).
 fn check_supported(tissue: &Tissue) -> Result<(), GpuError> {
     match crate::models::unsupported(&tissue.shape) {
@@ -51,8 +74,7 @@ fn check_supported(tissue: &Tissue) -> Result<(), GpuError> {
 
 /// Bytes of the largest buffer the tissue needs (for [`GpuContext::new`]).
 pub fn largest_buffer(tissue: &Tissue) -> u64 {
-    tissue
-        .allocations()
+    device_allocations(tissue)
         .iter()
         .map(|a| a.bytes as u64)
         .max()
@@ -72,7 +94,7 @@ impl GpuBackend {
         check_supported(tissue)?;
         let device = &ctx.device;
         let limits = device.limits();
-        for a in tissue.allocations() {
+        for a in device_allocations(tissue) {
             if a.bytes as u64 > limits.max_storage_buffer_binding_size {
                 return Err(GpuError::TooLarge {
                     buffer: a.name,
@@ -116,8 +138,14 @@ impl GpuBackend {
                 let buffer = if array.per_slot() {
                     b(array.name(), &layout::to_slot_major(bytes, nb.k, capacity))
                 } else if array == ShapeArray::Viscous {
-                    // The committed rows, then as many for the next state (mls.wgsl).
-                    b(array.name(), &[bytes, bytes].concat())
+                    // Component-major like the per-slot arrays (a warp's threads read
+                    // adjacent words), the committed rows, then as many for the next
+                    // state (mls.wgsl).
+                    let rows = layout::to_slot_major(bytes, VISCO_ROW, capacity);
+                    b(
+                        array.name(),
+                        &[rows.as_slice(), &vec![0u8; rows.len()]].concat(),
+                    )
                 } else {
                     b(array.name(), bytes)
                 };
@@ -413,8 +441,7 @@ impl GpuBackend {
 
     /// Writes node-major elements `elements` (`data`, [`layout::ELEMENT`] bytes each) of a
     /// per-slot array that the device stores slot-major: one write per slot.
-    fn write_per_slot(&self, buffer: &wgpu::Buffer, elements: Range<usize>, data: &[u8]) {
-        let k = self.params.k as usize;
+    fn write_per_slot(&self, buffer: &wgpu::Buffer, k: usize, elements: Range<usize>, data: &[u8]) {
         let first = elements.start;
         for run in layout::runs(elements, k) {
             let bytes: Vec<u8> = (0..run.nodes.len())
@@ -426,6 +453,28 @@ impl GpuBackend {
             self.ctx
                 .queue
                 .write_buffer(buffer, run.offset(self.capacity), &bytes);
+        }
+    }
+
+    /// Elements per node of an array the device stores component-major (`crate::layout`):
+    /// the per-slot arrays (K) and the viscoelastic state ([`VISCO_ROW`]); `None` for an
+    /// array stored as the host has it.
+    fn strided(&self, array: ShapeArray) -> Option<usize> {
+        if array.per_slot() {
+            Some(self.params.k as usize)
+        } else if array == ShapeArray::Viscous {
+            Some(VISCO_ROW)
+        } else {
+            None
+        }
+    }
+
+    /// Bytes of `array` as the host has it (the viscoelastic state's buffer also holds the
+    /// next step's rows).
+    fn host_size(&self, array: ShapeArray, buffer: &wgpu::Buffer) -> usize {
+        match array {
+            ShapeArray::Viscous => buffer.size() as usize / 2,
+            _ => buffer.size() as usize,
         }
     }
 
@@ -598,11 +647,13 @@ impl Backend for GpuBackend {
         let elements = first * k..first * k + index.len();
         self.write_per_slot(
             &self.buffers.nb_index,
+            k,
             elements.clone(),
             bytemuck::cast_slice(index),
         );
         self.write_per_slot(
             &self.buffers.nb_weight,
+            k,
             elements,
             bytemuck::cast_slice(weight),
         );
@@ -620,12 +671,12 @@ impl Backend for GpuBackend {
             array,
             offset,
             data.len(),
-            target.map(|(_, b)| b.size() as usize),
+            target.map(|(_, b)| self.host_size(array, b)),
         )?;
         if let Some((_, buffer)) = target {
-            if array.per_slot() {
+            if let Some(k) = self.strided(array) {
                 let first = offset / layout::ELEMENT;
-                self.write_per_slot(buffer, first..first + data.len() / layout::ELEMENT, data);
+                self.write_per_slot(buffer, k, first..first + data.len() / layout::ELEMENT, data);
             } else if !data.is_empty() {
                 self.ctx.queue.write_buffer(buffer, offset as u64, data);
             }
@@ -645,21 +696,18 @@ impl Backend for GpuBackend {
             array,
             offset,
             out.len(),
-            source.map(|(_, b)| b.size() as usize),
+            source.map(|(_, b)| self.host_size(array, b)),
         )?;
         let Some((_, buffer)) = source else {
             return Ok(());
         };
-        if !array.per_slot() {
+        let Some(k) = self.strided(array) else {
             return self.read_pieces(vec![(buffer, offset as u64, out)]);
-        }
+        };
         // Slot-major on the device: read each slot's run, then put the elements back in
         // node-major order.
         let first = offset / layout::ELEMENT;
-        let runs = layout::runs(
-            first..first + out.len() / layout::ELEMENT,
-            self.params.k as usize,
-        );
+        let runs = layout::runs(first..first + out.len() / layout::ELEMENT, k);
         let mut parts: Vec<Vec<u8>> = runs
             .iter()
             .map(|r| vec![0u8; r.nodes.len() * layout::ELEMENT])
@@ -670,7 +718,6 @@ impl Backend for GpuBackend {
             .map(|(r, part)| (buffer, r.offset(self.capacity), part.as_mut_slice()))
             .collect();
         self.read_pieces(pieces)?;
-        let k = self.params.k as usize;
         for (run, part) in runs.iter().zip(&parts) {
             for (n, element) in part.chunks_exact(layout::ELEMENT).enumerate() {
                 let at = run.source(n, k, first) * layout::ELEMENT;

@@ -276,6 +276,10 @@ pub fn material_row(material: &Material) -> Vec4 {
     material.material_row()
 }
 
+/// The name, in [`ShapeInfo::arrays`], of the viscoelastic state's second copy (the
+/// next step's).
+pub const VISCOUS_NEXT: &str = "viscous_state_next";
+
 /// Name and size of one allocated array.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ArrayInfo {
@@ -376,13 +380,23 @@ impl ShapeInfo {
 
     /// The arrays this model allocated, with their sizes.
     pub fn arrays(&self) -> Vec<ArrayInfo> {
-        self.bytes()
+        let mut out: Vec<ArrayInfo> = self
+            .bytes()
             .into_iter()
             .map(|(array, b)| ArrayInfo {
                 name: array.name(),
                 bytes: b.len(),
             })
-            .collect()
+            .collect();
+        // The viscoelastic state is held twice: committed, and the next step's (on the
+        // GPU in the same buffer, [`ShapeArray::Viscous`]).
+        if let Some(v) = out.iter().find(|a| a.name == ShapeArray::Viscous.name()) {
+            out.push(ArrayInfo {
+                name: VISCOUS_NEXT,
+                bytes: v.bytes,
+            });
+        }
+        out
     }
 
     /// Every array of the model as mutable raw bytes, by name.

@@ -84,6 +84,16 @@ impl Prony {
         }
     }
 
+    /// The series of two terms, in a constant.
+    pub const fn new_const(terms: [PronyTerm; 2]) -> Prony {
+        let mut p = Prony::elastic();
+        p.terms[0] = terms[0];
+        p.terms[1] = terms[1];
+        p.len = 2;
+        p.requested = 2;
+        p
+    }
+
     /// The series of `terms` (more than [`MAX_PRONY_TERMS`] fails [`Prony::validate`]).
     pub fn new(terms: &[PronyTerm]) -> Prony {
         let mut p = Prony {
