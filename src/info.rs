@@ -15,6 +15,8 @@ pub struct SceneInfo {
     /// What the model cannot represent of an isotropic solid, if anything
     /// ([`needlesim_core::models::TissueModel::limitation`]).
     pub limitation: Option<&'static str>,
+    /// The viscoelastic relaxation function, written out (`None`: elastic).
+    pub viscoelastic: Option<String>,
     /// Mesh nodes.
     pub nodes: usize,
     /// Allocated node slots.
@@ -39,6 +41,24 @@ pub struct SceneInfo {
     pub neighbours: NeighbourStats,
     /// Every simulation array.
     pub arrays: Vec<ArrayInfo>,
+}
+
+/// `g(t) = g_inf + g_1 exp(-t / tau_1 s) + ...` and what it means for the moduli.
+fn relaxation_text(p: &needlesim_core::models::viscoelastic::Prony) -> Option<String> {
+    if p.is_empty() {
+        return None;
+    }
+    let terms: Vec<String> = p
+        .terms()
+        .iter()
+        .map(|t| format!("{} exp(-t / {} s)", t.g, t.tau))
+        .collect();
+    Some(format!(
+        "g(t) = {:.4} + {}: the moduli are the instantaneous ones and relax to {:.4} of them",
+        p.g_inf(),
+        terms.join(" + "),
+        p.g_inf()
+    ))
 }
 
 fn min_mean_max(v: &[f64]) -> [f64; 3] {
@@ -71,6 +91,7 @@ impl SceneInfo {
             name: scene.name.clone(),
             model: scene.material.short_name(),
             limitation: scene.material.limitation(),
+            viscoelastic: relaxation_text(&scene.material.prony()),
             nodes: n,
             capacity: t.state.capacity(),
             fixed: t.n_fixed,
@@ -116,6 +137,9 @@ impl fmt::Display for SceneInfo {
         writeln!(f, "model      {}", self.model)?;
         if let Some(l) = self.limitation {
             writeln!(f, "           note: {l}")?;
+        }
+        if let Some(v) = &self.viscoelastic {
+            writeln!(f, "relaxation {v}")?;
         }
         writeln!(
             f,

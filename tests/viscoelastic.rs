@@ -510,3 +510,18 @@ fn viscous_rows_round_trip_on_the_gpu() {
         "state differs by {worst:e} of {scale:e}"
     );
 }
+
+/// `needlesim info` writes the relaxation function out; an elastic scene has no such line.
+#[test]
+fn info_writes_the_relaxation_function() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let visco = Scene::from_file(dir.join("cube_relaxation_deb.toml")).unwrap();
+    let text = needlesim::SceneInfo::of(&visco).unwrap().to_string();
+    assert!(
+        text.contains("relaxation g(t) = 0.5000 + 0.3 exp(-t / 0.15 s) + 0.2 exp(-t / 1 s)"),
+        "{text}"
+    );
+    let elastic = Scene::from_file(dir.join("cube_compression_deb.toml")).unwrap();
+    let text = needlesim::SceneInfo::of(&elastic).unwrap().to_string();
+    assert!(!text.contains("relaxation"), "{text}");
+}
