@@ -5,9 +5,14 @@
 
 const J_MIN: f32 = 0.05;
 
-fn neo_hookean_node(i: u32, lambda: f32, mu: f32, hourglass: f32) {
-    let g = gradient(i);
-    let f = g.j + identity();
+// The stress P of F, with the cofactor matrix and the volume ratio it used.
+struct NeoHookeanStress {
+    p: mat3x3<f32>,
+    cof: mat3x3<f32>,
+    det: f32,
+}
+
+fn neo_hookean_stress(f: mat3x3<f32>, lambda: f32, mu: f32) -> NeoHookeanStress {
     // Rows of the cofactor matrix (these matrices hold rows in their columns).
     let cof = mat3x3<f32>(cross(f[1], f[2]), cross(f[2], f[0]), cross(f[0], f[1]));
     let det = dot(f[0], cof[0]);
@@ -17,8 +22,12 @@ fn neo_hookean_node(i: u32, lambda: f32, mu: f32, hourglass: f32) {
         l = log(det);
         dl = 1.0 / det;
     }
-    let p = mu * f + ((lambda * l - mu) * dl) * cof;
-    store(i, p, g, rest[i].w, hourglass);
+    return NeoHookeanStress(mu * f + ((lambda * l - mu) * dl) * cof, cof, det);
+}
+
+fn neo_hookean_node(i: u32, lambda: f32, mu: f32, hourglass: f32) {
+    let g = gradient(i);
+    store(i, neo_hookean_stress(g.j + identity(), lambda, mu).p, g, rest[i].w, hourglass);
 }
 
 @compute @workgroup_size(64)
@@ -44,17 +53,9 @@ fn neo_hookean_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
 fn neo_hookean_visco_node(i: u32, lambda: f32, mu: f32, hourglass: f32) {
     let g = gradient(i);
     let f = g.j + identity();
-    let cof = mat3x3<f32>(cross(f[1], f[2]), cross(f[2], f[0]), cross(f[0], f[1]));
-    let det = dot(f[0], cof[0]);
-    var l = log(J_MIN) + (det - J_MIN) / J_MIN;
-    var dl = 1.0 / J_MIN;
-    if det >= J_MIN {
-        l = log(det);
-        dl = 1.0 / det;
-    }
-    let p0 = mu * f + ((lambda * l - mu) * dl) * cof;
+    let st = neo_hookean_stress(f, lambda, mu);
     // F^-1 = cof^T / det.
-    let s = relax_stress(i, mat_mul(transpose(cof) * (1.0 / det), p0));
+    let s = relax_stress(i, mat_mul(transpose(st.cof) * (1.0 / st.det), st.p));
     store(i, mat_mul(f, s), g, rest[i].w, hourglass);
 }
 

@@ -210,30 +210,7 @@ fn shape_rows_written_on_either_backend_agree() {
         let Some(mut g) = gpu(&tissue) else { continue };
         bad(&mut g);
         g.write_shape_bytes(array, offset, data).unwrap();
-        let mut x = read(&mut c, NodeField::Position);
-        x[8][1] += 0.003;
-        for b in [&mut c as &mut dyn Backend, &mut g] {
-            b.write(NodeField::Position, 0, &x).unwrap();
-            b.compute_forces();
-        }
-        let (fc, fg) = (
-            read(&mut c, NodeField::Force),
-            read(&mut g, NodeField::Force),
-        );
-        let scale = max_norm(&fc);
-        assert!(scale > 0.0);
-        for i in 0..fc.len() {
-            let d = norm3([
-                fc[i][0] - fg[i][0],
-                fc[i][1] - fg[i][1],
-                fc[i][2] - fg[i][2],
-                0.0,
-            ]);
-            assert!(
-                d <= 1e-5 * scale,
-                "{label} {array}: node {i} differs by {d:e}"
-            );
-        }
+        push_and_compare_forces(&mut c, &mut g, 8, 1, 0.003, &format!("{label} {array}"));
     }
 }
 
@@ -288,16 +265,26 @@ fn per_slot_arrays_round_trip_at_any_element_range() {
     g.read_shape_bytes(ShapeArray::RestLength, 4 * (2 * k + 5), &mut b)
         .unwrap();
     assert!(a == b, "a partial read differs");
-    let mut x = read(&mut c, NodeField::Position);
-    x[11][0] += 0.002;
-    for b in [&mut c as &mut dyn Backend, &mut g] {
+    push_and_compare_forces(&mut c, &mut g, 11, 0, 0.002, "per-slot arrays");
+}
+
+/// Moves node `node` by `by` m along `axis` on both backends, evaluates the forces and
+/// checks they agree within 1e-5 of the largest (f32 round-off of the force kernels).
+fn push_and_compare_forces(
+    c: &mut dyn Backend,
+    g: &mut GpuBackend,
+    node: usize,
+    axis: usize,
+    by: f32,
+    label: &str,
+) {
+    let mut x = read(c, NodeField::Position);
+    x[node][axis] += by;
+    for b in [c as &mut dyn Backend, g] {
         b.write(NodeField::Position, 0, &x).unwrap();
         b.compute_forces();
     }
-    let (fc, fg) = (
-        read(&mut c, NodeField::Force),
-        read(&mut g, NodeField::Force),
-    );
+    let (fc, fg) = (read(c, NodeField::Force), read(g, NodeField::Force));
     let scale = max_norm(&fc);
     assert!(scale > 0.0);
     for i in 0..fc.len() {
@@ -307,7 +294,7 @@ fn per_slot_arrays_round_trip_at_any_element_range() {
             fc[i][2] - fg[i][2],
             0.0,
         ]);
-        assert!(d <= 1e-5 * scale, "node {i} differs by {d:e}");
+        assert!(d <= 1e-5 * scale, "{label}: node {i} differs by {d:e}");
     }
 }
 

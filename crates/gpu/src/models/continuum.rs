@@ -6,7 +6,7 @@
 use super::MATERIAL;
 use crate::buffers::Binding::{self, *};
 use crate::kernels::{KernelSpec, COMMON};
-use needlesim_core::models::mls::ContinuumConstants;
+use needlesim_core::models::mls::{ContinuumArrays, ContinuumConstants};
 use needlesim_core::models::viscoelastic::Prony;
 use needlesim_core::models::ShapeArray::{
     FirstPass, InverseMoment, RestPosition, Rotation, ShapeVector, Viscous,
@@ -78,6 +78,30 @@ pub const VISCO_COMMIT: KernelSpec = KernelSpec {
     entry: "visco_commit",
     bindings: &COMMIT_BINDINGS,
 };
+
+/// The first pass of a [`ContinuumLaw`] model among its four entry points `[elastic,
+/// elastic with several materials, viscoelastic, viscoelastic with several materials]`,
+/// then the gather.
+///
+/// [`ContinuumLaw`]: needlesim_core::models::continuum::ContinuumLaw
+pub fn law_force_kernels(
+    arrays: &ContinuumArrays,
+    mixed: bool,
+    entries: [&'static KernelSpec; 4],
+) -> Vec<&'static KernelSpec> {
+    let visco = !arrays.visco.is_empty();
+    let first = entries[usize::from(mixed) + 2 * usize::from(visco)];
+    vec![first, &GATHER_FORCE]
+}
+
+/// [`VISCO_COMMIT`] for a viscoelastic material, nothing for an elastic one.
+pub fn commit_kernels(arrays: &ContinuumArrays) -> Vec<&'static KernelSpec> {
+    if arrays.visco.is_empty() {
+        Vec::new()
+    } else {
+        vec![&VISCO_COMMIT]
+    }
+}
 
 /// Writes the update coefficients of a Prony series for the step `params.dt`.
 pub fn write_prony(prony: &Prony, params: &mut crate::params::Params) {

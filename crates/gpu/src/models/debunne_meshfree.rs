@@ -6,8 +6,8 @@
 //! ([`FRAME`]), to stay within 8 storage buffers per kernel.
 
 use super::continuum::{
-    write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
-    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, ROTATION, SHAPE_VECTOR, VISCO, VISCO_COMMIT,
+    commit_kernels, write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
+    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, ROTATION, SHAPE_VECTOR, VISCO,
 };
 use super::{GpuModel, MATERIAL};
 use crate::buffers::Binding;
@@ -157,10 +157,6 @@ impl GpuModel for DebunneParams {
     }
 
     fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {
-        if shape.continuum.visco.is_empty() {
-            Vec::new()
-        } else {
-            vec![&VISCO_COMMIT]
-        }
+        commit_kernels(&shape.continuum)
     }
 }

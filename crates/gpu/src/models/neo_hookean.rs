@@ -2,8 +2,8 @@
 //! the shared gather, the twins of [`needlesim_core::models::neo_hookean`].
 
 use super::continuum::{
-    write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
-    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, VISCO_COMMIT,
+    commit_kernels, law_force_kernels, write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED,
+    FIRST_PASS_VISCO, FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS,
 };
 use super::GpuModel;
 use crate::kernels::{KernelSpec, COMMON};
@@ -62,21 +62,11 @@ impl GpuModel for NeoHookeanParams {
     }
 
     fn force_kernels(shape: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
-        let visco = !shape.continuum.visco.is_empty();
-        let first = match (visco, mixed) {
-            (false, false) => &FIRST,
-            (false, true) => &FIRST_MIXED,
-            (true, false) => &FIRST_VISCO,
-            (true, true) => &FIRST_VISCO_MIXED,
-        };
-        vec![first, &GATHER_FORCE]
+        let entries = [&FIRST, &FIRST_MIXED, &FIRST_VISCO, &FIRST_VISCO_MIXED];
+        law_force_kernels(&shape.continuum, mixed, entries)
     }
 
     fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {
-        if shape.continuum.visco.is_empty() {
-            Vec::new()
-        } else {
-            vec![&VISCO_COMMIT]
-        }
+        commit_kernels(&shape.continuum)
     }
 }
