@@ -1,9 +1,12 @@
 //! Boundary conditions written as scenes: rollers, prescribed displacements, surface loads
 //! and the reactions of held sets, against linear elasticity.
 
+mod common;
+
+use common::mean_strain;
 use needlesim::core::scene::{Axis, Components, FixedSelection, LoadSpec, NodeSet};
 use needlesim::needle::Simulation;
-use needlesim::{make_backend, Material, NodeField, Scene};
+use needlesim::{make_backend, Material, Scene};
 use std::path::Path;
 
 fn run(scene: &Scene, seconds: f64) -> Simulation {
@@ -13,23 +16,6 @@ fn run(scene: &Scene, seconds: f64) -> Simulation {
     let steps = (seconds / sim.dt()).ceil() as u64;
     sim.step_n(steps).unwrap();
     sim
-}
-
-/// Least-squares slope of the displacement along `axis` against the rest coordinate: the
-/// mean strain.
-fn strain(sim: &mut Simulation, axis: usize) -> f64 {
-    let rest = sim.rest_positions();
-    let n = rest.len();
-    let mut p = vec![[0.0f32; 4]; n];
-    sim.backend()
-        .read(NodeField::Position, 0..n, &mut p)
-        .unwrap();
-    let mean = |f: &dyn Fn(usize) -> f64| (0..n).map(f).sum::<f64>() / n as f64;
-    let xm = mean(&|i| rest[i][axis]);
-    let um = mean(&|i| p[i][axis] as f64 - rest[i][axis]);
-    let cov = mean(&|i| (rest[i][axis] - xm) * (p[i][axis] as f64 - rest[i][axis] - um));
-    let var = mean(&|i| (rest[i][axis] - xm).powi(2));
-    cov / var
 }
 
 /// The shipped compression scene, with Debunne and with point based animation: the top
@@ -74,9 +60,9 @@ fn compression_between_frictionless_plates_gives_e_and_nu() {
             [0.0; 4]
         );
         let (ex, ey, ez) = (
-            strain(&mut sim, 0),
-            strain(&mut sim, 1),
-            strain(&mut sim, 2),
+            mean_strain(&mut sim, 0),
+            mean_strain(&mut sim, 1),
+            mean_strain(&mut sim, 2),
         );
         eprintln!("{model}: strains {ex:e} {ey:e} {ez:e}");
         assert!((ey / eps - 1.0).abs() < 0.01, "{model}: axial strain {ey}");
@@ -117,7 +103,7 @@ fn a_pressure_on_the_top_is_carried_by_the_floor() {
         "floor {:?}",
         r[0].force
     );
-    let ey = strain(&mut sim, 1);
+    let ey = mean_strain(&mut sim, 1);
     assert!((ey / (-20.0 / 1e4) - 1.0).abs() < 0.02, "axial strain {ey}");
 }
 

@@ -104,21 +104,6 @@ fn start(scene: &Scene) -> Simulation {
     start_on(scene, On::Cpu).unwrap()
 }
 
-/// Least-squares slope of the y displacement against the rest y: the mean axial strain.
-fn axial_strain(sim: &mut Simulation) -> f64 {
-    let rest = sim.rest_positions();
-    let n = rest.len();
-    let mut p = vec![[0.0f32; 4]; n];
-    sim.backend()
-        .read(NodeField::Position, 0..n, &mut p)
-        .unwrap();
-    let mean = |f: &dyn Fn(usize) -> f64| (0..n).map(f).sum::<f64>() / n as f64;
-    let ym = mean(&|i| rest[i][1]);
-    let um = mean(&|i| p[i][1] as f64 - rest[i][1]);
-    let cov = mean(&|i| (rest[i][1] - ym) * (p[i][1] as f64 - rest[i][1] - um));
-    cov / mean(&|i| (rest[i][1] - ym).powi(2))
-}
-
 /// Step strain: the top plate pushes 0.2 mm (0.2%) down over 50 ms and holds. The plate
 /// reaction relaxes as the series says, `E eps A` times [`ramp_response`] (uniaxial stress:
 /// both Lame constants relax alike, so the lateral strain does not change and the
@@ -201,7 +186,7 @@ fn creep_under_a_held_pressure_follows_the_compliance() {
         for t in [0.4, 0.6, 0.8, 1.0, 1.5, 2.5, 4.0] {
             let steps = ((t - sim.time()) / sim.dt()).round() as u64;
             sim.step_n(steps).unwrap();
-            let strain = axial_strain(&mut sim);
+            let strain = common::mean_strain(&mut sim, 1);
             let want = -pressure / E * creep_ramp_response(&p, sim.time(), ramp).unwrap();
             let err = (strain / want - 1.0).abs();
             eprintln!(

@@ -124,3 +124,20 @@ pub fn same_states_force_difference(
     }
     (scale, largest)
 }
+
+/// Least-squares slope of the displacement along `axis` against the rest coordinate over
+/// the mesh nodes: the mean strain along `axis`.
+pub fn mean_strain(sim: &mut Simulation, axis: usize) -> f64 {
+    let rest = sim.rest_positions();
+    let n = rest.len();
+    let mut p = vec![[0.0f32; 4]; n];
+    sim.backend()
+        .read(NodeField::Position, 0..n, &mut p)
+        .unwrap();
+    let mean = |f: &dyn Fn(usize) -> f64| (0..n).map(f).sum::<f64>() / n as f64;
+    let xm = mean(&|i| rest[i][axis]);
+    let um = mean(&|i| p[i][axis] as f64 - rest[i][axis]);
+    let cov = mean(&|i| (rest[i][axis] - xm) * (p[i][axis] as f64 - rest[i][axis] - um));
+    let var = mean(&|i| (rest[i][axis] - xm).powi(2));
+    cov / var
+}
