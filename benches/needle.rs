@@ -2,10 +2,13 @@
 //! - `add_remove/<nodes>`: one node addition at the cube's centre followed by its removal
 //!   (NodeEditor on one CPU thread), at `NEEDLESIM_BENCH_SIZES` target node counts
 //!   (default `639,10932,100000`): the cost should not grow with the node count;
-//! - `step_inserted/<backend>/10932`: one full `Simulation` step of a 10932-node LSHM cube
-//!   with the needle 6 cm inside (Surface, Shaft and Tip nodes, friction, force readback),
-//!   on one CPU thread, all CPU threads and the GPU when an adapter is found; for the GPU,
-//!   the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed first.
+//! - `step_inserted/<backend>/<nodes>`: one full `Simulation` step of an LSHM cube
+//!   (`NEEDLESIM_NEEDLE_SIZES`, default 10932 nodes) with the needle 6 cm inside and held
+//!   (Surface, Shaft and Tip nodes, friction, force readback), on one CPU thread, all CPU
+//!   threads and the GPU when an adapter is found, and `step_inserted/tissue-only/...`:
+//!   the same CPU backend stepped alone, so that the difference is the needle's cost; for
+//!   the GPU, the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed
+//!   first (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces, ShapeMatchingParams};
@@ -79,11 +82,12 @@ action = "pause"
 duration = 100.0
 "#;
 
-/// The 10932-node LSHM cube (K = 16) clamped at +x with the needle of [`NEEDLE`].
-fn inserted() -> Scene {
+/// An LSHM cube of about `nodes` nodes (K = 16) clamped at +x with the needle of
+/// [`NEEDLE`].
+fn inserted(nodes: usize) -> Scene {
     Scene::builder()
         .neighbours(16)
-        .box_with_nodes([0.0; 3], [0.1; 3], 10932)
+        .box_with_nodes([0.0; 3], [0.1; 3], nodes)
         .material(Material::LocalShapeMatching(
             ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
         ))
@@ -99,9 +103,34 @@ fn inserted() -> Scene {
 const COUNTED_STEPS: u64 = 200;
 
 fn step_inserted(c: &mut Criterion) {
-    let scene = inserted();
     let mut group = c.benchmark_group("step_inserted");
     group.sample_size(10);
+    for nodes in needle_sizes() {
+        step_inserted_at(&mut group, &inserted(nodes));
+    }
+    group.finish();
+}
+
+/// Cube sizes of `step_inserted`: `NEEDLESIM_NEEDLE_SIZES` (default `10932`; the issue's
+/// `10932,100000` takes minutes on 2 cores).
+fn needle_sizes() -> Vec<usize> {
+    std::env::var("NEEDLESIM_NEEDLE_SIZES")
+        .ok()
+        .map(|s| {
+            s.split(',')
+                .map(|x| x.trim().parse().expect("node count"))
+                .collect()
+        })
+        .unwrap_or(vec![10932])
+}
+
+/// One scene's needle step on every backend, then (CPU) the same backend stepped without
+/// the needle's work: the needle's overhead.
+fn step_inserted_at(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    scene: &Scene,
+) {
+    let scene = scene.clone();
     let prep = |scene: &Scene| Simulation::prepare(scene).unwrap();
     let mut runs: Vec<(&str, Simulation)> = Vec::new();
     for (name, threading) in [
@@ -113,12 +142,16 @@ fn step_inserted(c: &mut Criterion) {
         runs.push((name, p.start(Box::new(b)).unwrap()));
     }
     let p = prep(&scene);
-    match GpuBackend::new(&p.tissue) {
-        Ok(g) => {
-            eprintln!("GPU: {}", g.adapter());
-            runs.push(("gpu", p.start(Box::new(g)).unwrap()));
+    if std::env::var_os("NEEDLESIM_BENCH_CPU_ONLY").is_some() {
+        eprintln!("GPU bench skipped: NEEDLESIM_BENCH_CPU_ONLY is set");
+    } else {
+        match GpuBackend::new(&p.tissue) {
+            Ok(g) => {
+                eprintln!("GPU: {}", g.adapter());
+                runs.push(("gpu", p.start(Box::new(g)).unwrap()));
+            }
+            Err(e) => eprintln!("GPU bench skipped: {e}"),
         }
-        Err(e) => eprintln!("GPU bench skipped: {e}"),
     }
     for (name, sim) in runs.iter_mut() {
         sim.set_record(false);
@@ -142,8 +175,16 @@ fn step_inserted(c: &mut Criterion) {
             b.iter(|| sim.step().unwrap())
         });
         sim.backend().check_finite().unwrap();
+        if *name != "gpu" {
+            // The same backend, nodes and needle nodes, stepped without the needle's
+            // contact, friction and readbacks: what the needle adds is the difference.
+            let b = sim.backend();
+            group.bench_function(
+                BenchmarkId::new(format!("tissue-only/{name}"), n),
+                |bench| bench.iter(|| b.step(1)),
+            );
+        }
     }
-    group.finish();
 }
 
 criterion_group!(benches, add_remove, step_inserted);
