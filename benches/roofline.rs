@@ -1,0 +1,179 @@
+//! The roofline of the CPU step: the machine's limits measured in the same run, then every
+//! model's step against them.
+//!
+//! - Memory bandwidth: a STREAM triad `a[i] = b[i] + s c[i]` over three f32 arrays of
+//!   64 MiB each (far beyond any last-level cache), on one thread and on all threads,
+//!   best of 5; it moves 12 bytes per element (the write-allocate of `a` not counted, as
+//!   STREAM counts).
+//! - Peak f32 throughput: 16 independent multiply-add chains of 8 lanes (what the
+//!   compiler keeps in vector registers), on one thread and on all threads; 2 flops per
+//!   multiply and add. The default x86-64 target has SSE2, not FMA or AVX: this is the
+//!   peak the shipped build can reach, not the chip's.
+//! - Each model's step (forces + integration) at `NEEDLESIM_ROOFLINE_NODES` target nodes
+//!   (default 100000; a free stretched cube, K = 16, as the other benches), median of 20
+//!   steps on one thread, and its compulsory memory traffic per node-step: every array
+//!   of the step read once (neighbour rows, shape information), the positions and
+//!   velocities read twice (forces, integration) and written once, the forces written
+//!   once and read once; the gathers of neighbours' positions are taken to hit the cache
+//!   (lattice order keeps them close). The table gives that traffic over the step time
+//!   against the triad's bandwidth: a kernel near 100% is bound by memory, one far below
+//!   by its arithmetic (the rotation extractions, the continuum models' 3x3 products) or
+//!   by latency.
+//!
+//! `cargo bench --bench roofline` (about a minute on 2 cores).
+
+use needlesim::core::models::VISCOUS_NEXT;
+use needlesim::{Backend, CpuBackend, Threading, Tissue};
+use rayon::prelude::*;
+use std::hint::black_box;
+use std::time::Instant;
+
+mod common;
+use common::{cube, MODELS};
+
+/// Elements of each triad array: 16 Mi f32, 64 MiB.
+const TRIAD_LEN: usize = 16 << 20;
+
+/// `a = b + s c` over one chunk.
+fn triad_chunk(a: &mut [f32], b: &[f32], c: &[f32], s: f32) {
+    for ((a, b), c) in a.iter_mut().zip(b).zip(c) {
+        *a = b + s * c;
+    }
+}
+
+/// Best triad bandwidth (GB/s) of 5 repeats, on one thread or on rayon's pool, in chunks
+/// of 64 Ki elements either way.
+fn triad(parallel: bool) -> f64 {
+    const CHUNK: usize = 1 << 16;
+    let (mut a, b, c) = (
+        vec![0.5f32; TRIAD_LEN],
+        vec![1.0f32; TRIAD_LEN],
+        vec![2.0f32; TRIAD_LEN],
+    );
+    let s = black_box(3.0f32);
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t = Instant::now();
+        if parallel {
+            a.par_chunks_mut(CHUNK)
+                .zip(b.par_chunks(CHUNK))
+                .zip(c.par_chunks(CHUNK))
+                .for_each(|((a, b), c)| triad_chunk(a, b, c, s));
+        } else {
+            a.chunks_mut(CHUNK)
+                .zip(b.chunks(CHUNK))
+                .zip(c.chunks(CHUNK))
+                .for_each(|((a, b), c)| triad_chunk(a, b, c, s));
+        }
+        black_box(&a);
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    (12 * TRIAD_LEN) as f64 / best / 1e9
+}
+
+/// Multiply-add chains per thread (independent, so their latency overlaps).
+const CHAINS: usize = 16;
+/// Lanes per chain.
+const LANES: usize = 8;
+
+/// f32 GFLOP/s of `iterations` multiply-adds on [`CHAINS`] x [`LANES`] accumulators.
+fn fma_rate(iterations: usize) -> f64 {
+    let mut acc = [[1.0f32; LANES]; CHAINS];
+    let (m, k) = (black_box(0.999_999f32), black_box(1e-7f32));
+    let t = Instant::now();
+    for _ in 0..iterations {
+        for chain in acc.iter_mut() {
+            for x in chain.iter_mut() {
+                // A multiply and an add (a fused multiply-add would be a library call
+                // without the FMA target feature, which the default target lacks).
+                *x = *x * m + k;
+            }
+        }
+    }
+    black_box(&acc);
+    (2 * iterations * CHAINS * LANES) as f64 / t.elapsed().as_secs_f64() / 1e9
+}
+
+/// Peak f32 GFLOP/s on one thread or on every thread of rayon's pool (best of 3).
+fn peak_flops(parallel: bool) -> f64 {
+    let iterations = 20_000_000;
+    (0..3)
+        .map(|_| {
+            if parallel {
+                let threads = rayon::current_num_threads();
+                (0..threads)
+                    .into_par_iter()
+                    .map(|_| fma_rate(iterations))
+                    .sum::<f64>()
+            } else {
+                fma_rate(iterations)
+            }
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Compulsory bytes per node-step of the step of `tissue` (module docs).
+fn bytes_per_node_step(tissue: &Tissue) -> f64 {
+    let cap = tissue.state.capacity() as f64;
+    let once: usize = tissue
+        .allocations()
+        .iter()
+        .filter(|a| a.name != VISCOUS_NEXT)
+        .map(|a| match a.name {
+            // Positions and velocities: read by the forces and the integration, written
+            // by the integration; forces: written, then read by the integration.
+            "position" | "velocity" => 3 * a.bytes,
+            "force" => 2 * a.bytes,
+            // The viscoelastic state: read, and the next one written.
+            "viscous_state" => 2 * a.bytes,
+            _ => a.bytes,
+        })
+        .sum();
+    once as f64 / cap
+}
+
+/// Median seconds of one step of `b` over `steps` single steps.
+fn step_time(b: &mut CpuBackend, steps: usize) -> f64 {
+    b.step(3);
+    let mut t: Vec<f64> = (0..steps)
+        .map(|_| {
+            let s = Instant::now();
+            b.step(1);
+            s.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; a filter is not supported.
+    let nodes: usize = std::env::var("NEEDLESIM_ROOFLINE_NODES")
+        .ok()
+        .map(|s| s.trim().parse().expect("node count"))
+        .unwrap_or(100_000);
+    let threads = rayon::current_num_threads();
+    let (bw1, bw_all) = (triad(false), triad(true));
+    let (fl1, fl_all) = (peak_flops(false), peak_flops(true));
+    println!("Roofline of this machine ({threads} threads):");
+    println!("  triad bandwidth  {bw1:8.2} GB/s on 1 thread, {bw_all:8.2} GB/s on {threads}");
+    println!("  f32 mul + add    {fl1:8.2} GFLOP/s on 1 thread, {fl_all:8.2} GFLOP/s on {threads}");
+    println!();
+    println!(
+        "{:<14} {:>8} {:>16} {:>12} {:>10} {:>16}",
+        "model", "nodes", "bytes/node-step", "step ms", "GB/s", "% of 1-thr triad"
+    );
+    for (label, material) in MODELS {
+        let tissue = Tissue::from_scene(&cube(material, nodes, 1e-5, 1.01)).unwrap();
+        let bytes = bytes_per_node_step(&tissue);
+        let n = tissue.n_mesh;
+        let mut b = CpuBackend::new(tissue, Threading::Single).unwrap();
+        let t = step_time(&mut b, 20);
+        let rate = bytes * n as f64 / t / 1e9;
+        println!(
+            "{label:<14} {n:>8} {bytes:>16.0} {:>12.3} {rate:>10.2} {:>15.1}%",
+            1e3 * t,
+            100.0 * rate / bw1
+        );
+    }
+}
