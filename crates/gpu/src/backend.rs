@@ -335,9 +335,9 @@ impl GpuBackend {
     }
 
     /// GPU time per kernel since profiling was first enabled or last reset: one entry per
-    /// kernel of the model, the force kernels in order, then `integrate` (zero dispatches
-    /// for a kernel not run while profiling). Waits for the submitted work and reads the
-    /// timestamps back (one readback). [`GpuError::ProfilingUnsupported`] when the device
+    /// kernel of the model, the force kernels in order, then `integrate` and the kernels
+    /// that end a step (zero dispatches for a kernel not run while profiling). Waits for
+    /// the submitted work and reads the timestamps back (one readback). [`GpuError::ProfilingUnsupported`] when the device
     /// cannot time kernels; [`GpuError::Readback`] when reading the timestamps failed.
     pub fn kernel_times(&mut self) -> Result<Vec<KernelTime>, GpuError> {
         if !self.profiling_supported() {

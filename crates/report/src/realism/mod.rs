@@ -274,6 +274,7 @@ fn viscoelastic_study(
         let mut t = base.clone();
         set(&mut t, "needle.keyframe.0.speed", v.into());
         set(&mut t, "needle.keyframe.0.duration", (travel / v).into());
+        set(&mut t, "run.duration", (travel / v + 0.5).into());
         let sim = run(&t, Some(travel / v))?;
         let f = force_at(&sim, 0.025);
         progress(&format!(
@@ -290,6 +291,8 @@ fn viscoelastic_study(
         set(&mut t, "needle.keyframe.0.duration", (travel / v).into());
         set(&mut t, "needle.keyframe.1.duration", HOLD.into());
         let stop = travel / v;
+        // The scene's own run is shorter than a slow insertion and its hold.
+        set(&mut t, "run.duration", (stop + HOLD + 0.5).into());
         let sim = run(&t, Some(stop + HOLD))?;
         // The hold from 50 ms after the stop (the speed ramp's end) to its end.
         let held: Vec<(f64, f64)> = rows(&sim)
