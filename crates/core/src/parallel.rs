@@ -59,7 +59,8 @@ impl<'a> Threads<'a> {
         });
     }
 
-    /// Runs `f(i, &mut a[i], &mut b[i], &mut c[i])` for every node.
+    /// Runs `f(i, &mut a[i], &mut b[i], &mut c[i])` for every node, in chunks of [`CHUNK`]
+    /// nodes like [`Threads::for_each_chunk`].
     pub fn for_each_node3<A: Send, B: Send, C: Send>(
         self,
         a: &mut [A],
@@ -67,8 +68,37 @@ impl<'a> Threads<'a> {
         c: &mut [C],
         f: impl Fn(usize, &mut A, &mut B, &mut C) + Sync + Send,
     ) {
-        let mut pairs: Vec<(&mut B, &mut C)> = b.iter_mut().zip(c.iter_mut()).collect();
-        self.for_each_node(a, &mut pairs[..], |i, x, (y, z)| f(i, x, y, z));
+        let chunk = |first: usize, ca: &mut [A], cb: &mut [B], cc: &mut [C]| {
+            for (k, ((x, y), z)) in ca
+                .iter_mut()
+                .zip(cb.iter_mut())
+                .zip(cc.iter_mut())
+                .enumerate()
+            {
+                f(first + k, x, y, z);
+            }
+        };
+        if !self.parallel {
+            let chunks = a
+                .chunks_mut(CHUNK)
+                .zip(b.chunks_mut(CHUNK))
+                .zip(c.chunks_mut(CHUNK));
+            for (n, ((ca, cb), cc)) in chunks.enumerate() {
+                chunk(n * CHUNK, ca, cb, cc);
+            }
+            return;
+        }
+        let mut job = move || {
+            a.par_chunks_mut(CHUNK)
+                .zip(b.par_chunks_mut(CHUNK))
+                .zip(c.par_chunks_mut(CHUNK))
+                .enumerate()
+                .for_each(|(n, ((ca, cb), cc))| chunk(n * CHUNK, ca, cb, cc))
+        };
+        match self.pool {
+            Some(p) => p.install(job),
+            None => job(),
+        }
     }
 
     /// Sets `out[i] = f(i)` for every node.

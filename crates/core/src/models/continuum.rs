@@ -6,13 +6,12 @@
 //! frame and keeps its own shape.
 
 use super::mls::{ContinuumArrays, ContinuumConstants, NodeVolumes, StressSplit};
-use super::traits::{BuildContext, ForceInput, ModelState, ShapeArray, ShapeRow};
-use super::viscoelastic::Prony;
+use super::traits::{BuildContext, ForceInput, ModelState, ShapeArray, ShapeRow, TissueModel};
 use crate::math::Vec4;
 use crate::neighbours::Neighbours;
 
 /// A per-node hyperelastic law on the moving-least-squares gradient.
-pub trait ContinuumLaw: Copy + PartialEq + std::fmt::Debug + Send + Sync {
+pub trait ContinuumLaw: TissueModel + Send + Sync {
     /// The constants the kernels use, and the layout of the model's `node_material` row
     /// ([`ContinuumConstants::from_row`]).
     fn law_constants(&self) -> ContinuumConstants;
@@ -28,9 +27,6 @@ pub trait ContinuumLaw: Copy + PartialEq + std::fmt::Debug + Send + Sync {
         volume: f32,
         c: &ContinuumConstants,
     ) -> [f32; 12];
-
-    /// The viscoelastic Prony series of the material (empty: elastic).
-    fn law_prony(&self) -> Prony;
 
     /// Node `i`'s stress split for the viscoelastic update ([`StressSplit`]): the
     /// elastic stress of [`ContinuumLaw::law_first_pass`] written as `push S + extra`.
@@ -66,8 +62,7 @@ impl<L: ContinuumLaw> ContinuumShape<L> {
     ) -> ContinuumShape<L> {
         ContinuumShape {
             params,
-            continuum: ContinuumArrays::build(rule, rest, nb, n, ctx)
-                .with_prony(params.law_prony()),
+            continuum: ContinuumArrays::build(rule, rest, nb, n, ctx).with_prony(params.prony()),
         }
     }
 }

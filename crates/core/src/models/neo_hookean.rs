@@ -206,10 +206,6 @@ impl ContinuumLaw for NeoHookeanParams {
         first_pass(i, positions, rest, nb, inverse_moment, volume, c)
     }
 
-    fn law_prony(&self) -> Prony {
-        self.viscoelastic
-    }
-
     /// `S = F^-1 P` of [`stress`], pushed by `F`.
     fn law_split(
         i: usize,

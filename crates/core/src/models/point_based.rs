@@ -174,10 +174,6 @@ impl ContinuumLaw for PointBasedParams {
         first_pass(i, positions, rest, nb, inverse_moment, volume, c)
     }
 
-    fn law_prony(&self) -> Prony {
-        self.viscoelastic
-    }
-
     /// `S` the Green-strain stress, pushed by `F`; the volume term stays elastic.
     fn law_split(
         i: usize,
