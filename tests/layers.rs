@@ -132,7 +132,7 @@ fn entries(sim: &Simulation) -> Vec<(String, f64, usize)> {
 /// reported back out to `outer`; after full extraction every neighbour row, shape array
 /// (the per-node materials included) and surface triangle is bitwise as at the start.
 /// (Against tip travel the peaks come later by the dents, 4 to 6 mm here: see the
-/// README's layered-tissue section.)
+/// guide's layered tissue chapter, docs/guide/layers.md.)
 #[test]
 fn the_needle_punctures_each_layer_in_turn_and_extraction_restores_every_array() {
     let layered_scene = scene(&layered("debunne_meshfree", ["0.5", "0.4", "0.4"]));
@@ -579,7 +579,7 @@ fn slope(points: &[(f64, f64)]) -> f64 {
 /// (`deep` to 50 mm, the needle stops at 52), is within 10% of `mu q`. (Measured: 6.4,
 /// 24.2 and 11.9 N/m; the `outer` window starts 3 mm in, after the entry dent has
 /// relaxed, and is the farthest off. In a soft block held close behind the needle the
-/// slope is mostly elastic drag, not friction: see the README's layered section.)
+/// slope is mostly elastic drag, not friction: see the guide's layered tissue chapter.)
 #[test]
 fn the_friction_slope_changes_at_each_layer_as_its_friction_per_length() {
     let mut sim = cpu_sim(&scene(&slope_scene(1e5, 2e-4, GRIP)));

@@ -7,9 +7,10 @@
 //! the lanes of a subgroup) handle 32 consecutive nodes and read their slot `s` together:
 //! node-major, those 32 reads are `4 K` bytes apart and touch 32 different 32-byte
 //! sectors. Slot-major, slot `s` of node `i` at `s C + i` (`C` the capacity), they are
-//! adjacent, one 128-byte line per warp and slot. Measured on an NVIDIA H200 (README, "On a
-//! real GPU"): at 1M nodes the node-major mass-spring kernel took 560 us per step, 26
-//! times its 100k-node time, once the rows no longer fit the 50 MB L2 cache.
+//! adjacent, one 128-byte line per warp and slot. Measured on an NVIDIA H200
+//! (`docs/guide/performance.md`, "On a real GPU"): at 1M nodes the node-major
+//! mass-spring kernel took 560 us per step, 26 times its 100k-node time, once the rows no
+//! longer fit the 50 MB L2 cache.
 //!
 //! The kernels index through `slot(node, s)` in `shaders/common.wgsl`; the host converts
 //! at upload, at every row write (`write_neighbour_rows`, the shape array writes of

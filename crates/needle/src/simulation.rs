@@ -320,8 +320,9 @@ impl Simulation {
     }
 
     /// Keeps at most the last `limit` steps in the history (`None`, the default, keeps
-    /// every step: about 120 bytes a step). Samples past the limit are dropped oldest
-    /// first; [`Simulation::take_history`] streams them out instead.
+    /// every step: 160 bytes a step, the size of a [`NeedleSample`]). Samples past the
+    /// limit are dropped oldest first; [`Simulation::take_history`] streams them out
+    /// instead.
     pub fn set_history_limit(&mut self, limit: Option<usize>) {
         self.state.history_limit = limit;
         self.trim_history();

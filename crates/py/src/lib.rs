@@ -279,7 +279,7 @@ impl PySimulation {
         Self::build(scene, backend, threads, Some(c))
     }
 
-    /// Most steps `history()` keeps (None, the default: every step, about 120 bytes a
+    /// Most steps `history()` keeps (None, the default: every step, 160 bytes a
     /// step). When set, the oldest steps are dropped first; `history(clear=True)` streams
     /// the record out instead.
     #[getter]

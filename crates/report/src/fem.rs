@@ -12,8 +12,8 @@ use crate::constants::{
 use crate::error::ReportError;
 use std::sync::OnceLock;
 
-const CSV: &str = include_str!("../../../reference/indentation_fem.csv");
-const MD: &str = include_str!("../../../reference/indentation_fem.md");
+const CSV: &str = include_str!("../reference/indentation_fem.csv");
+const MD: &str = include_str!("../reference/indentation_fem.md");
 const POINTS: usize = 17;
 /// Punch depth of the shipped solution, m (checked against `indentation_fem.md`).
 const REFERENCE_DEPTH: f64 = 0.002;
@@ -117,8 +117,8 @@ pub struct Column {
     u: Vec<[f64; 2]>,
 }
 
-const COLUMN_CSV: &str = include_str!("../../../reference/column_fem.csv");
-const COLUMN_MD: &str = include_str!("../../../reference/column_fem.md");
+const COLUMN_CSV: &str = include_str!("../reference/column_fem.csv");
+const COLUMN_MD: &str = include_str!("../reference/column_fem.md");
 const COLUMN_R_POINTS: usize = 11;
 const COLUMN_Y_POINTS: usize = 41;
 
@@ -235,7 +235,7 @@ pub fn column() -> Result<&'static Column, ReportError> {
         .map_err(|e| ReportError::Reference(e.clone()))
 }
 
-const BEAM_MD: &str = include_str!("../../../reference/beam_modes_fem.md");
+const BEAM_MD: &str = include_str!("../reference/beam_modes_fem.md");
 
 /// The frequency case's reference: the first bending period of the clamped bar, from
 /// the lowest eigenvalue of the 3D linear-elastic problem with quadratic tetrahedra

@@ -255,7 +255,7 @@ fn pick(h: &[NeedleSample], a: f64, b: f64, f: fn(&NeedleSample) -> f64) -> Vec<
 /// study at 648 and 4,913 nodes; otherwise the liver scene at 10 mm and the slope study
 /// with the needle spacing halved only.
 pub fn run_needle(full: bool, progress: &mut dyn FnMut(&str)) -> Result<NeedleReport, ReportError> {
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
     let read = |name: &str| {
         std::fs::read_to_string(scenes.join(name)).map_err(|source| ReportError::Io {
             path: scenes.join(name).display().to_string(),
@@ -623,7 +623,7 @@ mod tests {
 
     #[test]
     fn the_insertion_lasts_as_long_as_the_opening_moves() {
-        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
         let text = std::fs::read_to_string(scenes.join("layered_liver_biopsy.toml")).unwrap();
         let moves = |t: &str| insertion_seconds(t, &scenes).unwrap();
         assert_eq!(moves(&text), 6.0);

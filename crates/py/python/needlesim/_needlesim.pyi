@@ -42,7 +42,7 @@ class Simulation:
         for a truncated or altered file or another format version."""
     @property
     def history_limit(self) -> Optional[int]:
-        """Most steps history() keeps (None, the default: all, ~120 bytes a step)."""
+        """Most steps history() keeps (None, the default: all, 160 bytes a step)."""
     @history_limit.setter
     def history_limit(self, limit: Optional[int]) -> None: ...
     def step(self, n: int = 1) -> None:
@@ -83,6 +83,13 @@ class Simulation:
     @property
     def puncture_state(self) -> PunctureState: ...
     @property
+    def tip_region(self) -> Optional[str]:
+        """The tissue region the tip is in (a [[region]] name, or "tissue" for the nodes in
+        none), or None while the tip is not inside."""
+    @property
+    def regions(self) -> List[str]:
+        """Names of the tissue regions, "tissue" (the nodes in no [[region]]) first."""
+    @property
     def masses(self) -> npt.NDArray[np.float64]:
         """(mesh_nodes,) node masses in kg (density times cell volume by default)."""
     def neighbours(self) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32]]:
@@ -95,8 +102,10 @@ class Simulation:
     def needle_force(self) -> Dict[str, Any]:
         """{"axial", "lateral", "tip": float N, "torque": float N m, "total": (3,) array N} of the last step."""
     def history(self, clear: bool = False) -> Dict[str, Any]:
-        """Per-step arrays: step, time, depth, axial, lateral, tip, torque, active_nodes, needle_nodes;
-        state as a list of str. clear=True also empties the record (streaming)."""
+        """Per-step arrays: step, time, depth, axial, lateral, tip, torque, active_nodes,
+        needle_nodes, tissue_depth (m, NaN while the tip is not in contact); state and region
+        (the region the tip is in, "" when not inside) as lists of str. clear=True also
+        empties the record (streaming)."""
     @property
     def active_nodes(self) -> int: ...
     @property

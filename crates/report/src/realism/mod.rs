@@ -138,7 +138,7 @@ fn event_energy(table: &toml::Table, seconds: f64) -> Result<EventEnergy, Report
 }
 
 fn scene_dir() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes")
 }
 
 fn read_scene(name: &str) -> Result<toml::Table, ReportError> {
