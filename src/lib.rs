@@ -19,6 +19,7 @@
 
 #![warn(missing_docs)]
 
+pub mod folder_lock;
 pub mod frame;
 pub mod info;
 pub mod needle_output;

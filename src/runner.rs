@@ -64,6 +64,33 @@ pub enum RunError {
     /// `checkpoint_every` is 0.
     #[error("checkpoint_every must be at least 1 step")]
     CheckpointEvery,
+    /// A resumed run asked to end before the checkpoint it resumes from: it would have
+    /// nothing to run and would cut the rows and frames past its end from the folder.
+    #[error(
+        "the run would end at step {steps}, before the checkpoint's step {checkpoint}: resume \
+         with more steps (or none: the scene's own), or start a new run in another folder; \
+         nothing in the folder was changed"
+    )]
+    ResumeBeforeCheckpoint {
+        /// Step of the checkpoint.
+        checkpoint: u64,
+        /// Steps the run asked for.
+        steps: u64,
+    },
+    /// Another running process writes into the output folder
+    /// ([`crate::folder_lock`]): nothing in it was changed.
+    #[error(
+        "{} is in use by another needlesim run (process {pid}, lock file {}): wait for it \
+         to end or choose another --out; nothing in the folder was changed",
+        dir.display(),
+        crate::folder_lock::LOCK_FILE
+    )]
+    FolderInUse {
+        /// The folder.
+        dir: PathBuf,
+        /// The process holding it.
+        pid: u32,
+    },
 }
 
 impl From<SimulationError> for RunError {
@@ -388,7 +415,28 @@ pub fn run_scene(
         Some(n) => n,
         None => scene.run.steps_at(sim.dt())?,
     };
+    if let Some(at) = resume_at.filter(|&at| total < at) {
+        return Err(RunError::ResumeBeforeCheckpoint {
+            checkpoint: at,
+            steps: total,
+        });
+    }
     let every = scene.run.output_every;
+    // Held until the run returns: no other run clears or appends to this folder meanwhile.
+    let _lock = if options.write_files {
+        std::fs::create_dir_all(&options.out_dir).map_err(io_error(&options.out_dir))?;
+        Some(
+            crate::folder_lock::FolderLock::acquire(&options.out_dir).map_err(|e| match e {
+                crate::folder_lock::LockError::Held { pid } => RunError::FolderInUse {
+                    dir: options.out_dir.clone(),
+                    pid,
+                },
+                crate::folder_lock::LockError::Io(e) => io_error(&options.out_dir)(e),
+            })?,
+        )
+    } else {
+        None
+    };
     let (mut outputs, kept) = if options.write_files {
         let (o, kept) = Outputs::create(scene, &sim, &options.out_dir, resume_at)?;
         (Some(o), kept)

@@ -60,6 +60,23 @@ pub fn parse_vary(spec: &str) -> Result<(String, Vec<toml::Value>), SweepError> 
     ))
 }
 
+/// Parses every `--vary` argument ([`parse_vary`]); a key given twice is an error (its
+/// values would have made two columns of one key, the later one overriding the earlier).
+pub fn parse_vary_all(specs: &[String]) -> Result<Vec<(String, Vec<toml::Value>)>, SweepError> {
+    let mut out: Vec<(String, Vec<toml::Value>)> = Vec::with_capacity(specs.len());
+    for spec in specs {
+        let (key, values) = parse_vary(spec)?;
+        if out.iter().any(|(k, _)| *k == key) {
+            return Err(SweepError::Key {
+                key,
+                problem: "is varied twice: give all its values in one --vary KEY=V1,V2,...".into(),
+            });
+        }
+        out.push((key, values));
+    }
+    Ok(out)
+}
+
 /// Every combination of the keys' values (the first key varies slowest).
 pub fn grid(vary: &[(String, Vec<toml::Value>)]) -> Vec<Vec<Override>> {
     vary.iter().fold(vec![Vec::new()], |acc, (key, values)| {

@@ -98,6 +98,50 @@ fn a_resumed_run_is_bitwise_the_uninterrupted_one_for_every_model() {
     }
 }
 
+/// A diverged state (a non-finite position) is neither written nor read back (`save()`
+/// after a divergence wrote it and `load()` accepted it), and a checkpoint never replaces
+/// something that is not a regular file (it renamed a file over a device node).
+#[test]
+fn a_non_finite_state_or_a_path_that_is_not_a_file_is_refused() {
+    let scene = scene(common::LINEAR_DEB.1);
+    let mut sim = start(&scene, Threading::Single);
+    sim.step_n(10).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let good_path = dir.path().join("good.ckpt");
+    sim.checkpoint().unwrap().write(&good_path).unwrap();
+    // Break node 3's position and try to save.
+    let mut p = [[0.0f32; 4]; 1];
+    sim.backend()
+        .read(NodeField::Position, 3..4, &mut p)
+        .unwrap();
+    p[0][1] = f32::NAN;
+    sim.backend().write(NodeField::Position, 3, &p).unwrap();
+    let path = dir.path().join("diverged.ckpt");
+    let e = sim.checkpoint().unwrap().write(&path).unwrap_err();
+    assert!(
+        matches!(e, CheckpointError::NonFinite { node: 3, .. }),
+        "{e}"
+    );
+    assert!(!path.exists(), "a file was written");
+    // A file holding such a state (as an older build wrote it) is refused on reading.
+    let bytes = sim.checkpoint().unwrap().to_bytes();
+    std::fs::write(&path, bytes).unwrap();
+    let e = Checkpoint::read(&path).unwrap_err();
+    assert!(e.to_string().contains("not finite"), "{e}");
+    // Over a folder, or a device: refused, the target untouched.
+    let folder = dir.path().join("folder");
+    std::fs::create_dir(&folder).unwrap();
+    let good = Checkpoint::read(&good_path).unwrap();
+    let e = good.write(&folder).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    assert!(folder.is_dir());
+    #[cfg(unix)]
+    {
+        let e = good.write("/dev/null").unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+    }
+}
+
 #[test]
 fn a_checkpoint_round_trips_through_a_file_and_damage_is_a_typed_error() {
     let scene = scene(common::LINEAR_DEB.1);

@@ -569,10 +569,7 @@ fn sweep(
     use needlesim::sweep;
     use std::io::Write;
     let (scene, stem, text) = load_with_text(&scene_path)?;
-    let vary = vary
-        .iter()
-        .map(|v| sweep::parse_vary(v))
-        .collect::<Result<Vec<_>, _>>()?;
+    let vary = sweep::parse_vary_all(vary)?;
     let variants = sweep::grid(&vary);
     // Every override must apply to the scene before anything runs (a typo fails at once).
     for v in &variants {

@@ -325,6 +325,37 @@ fn view_window_draws_frames_on_the_simulations_device() {
     );
 }
 
+/// A key varied twice is an error before anything runs (it wrote two columns of one key,
+/// the later overriding the earlier).
+#[test]
+fn sweep_refuses_a_key_varied_twice() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("sweep.csv");
+    let o = needlesim()
+        .arg("sweep")
+        .arg(root.join("scenes/needle_insert_extract.toml"))
+        .args([
+            "--vary",
+            "needle.cutting=0.1,0.2",
+            "--vary",
+            "needle.cutting=0.3",
+            "--steps",
+            "10",
+            "--out",
+        ])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "accepted: {stderr}");
+    assert!(
+        stderr.contains("needle.cutting") && stderr.contains("twice"),
+        "{stderr}"
+    );
+    assert!(!csv.exists(), "a CSV was written");
+}
+
 /// `needlesim sweep` runs the grid of the --vary values on two threads: every variant's
 /// needle force history is bitwise the one of the same scene run alone (one CPU thread,
 /// in this process), and a failing variant gets its error while the others complete.

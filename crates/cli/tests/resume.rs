@@ -84,3 +84,92 @@ fn the_cli_resumes_from_the_checkpoint_and_writes_the_same_files() {
     assert!(!o.status.success());
     assert!(stderr.contains("checkpoint.bin"), "{stderr}");
 }
+
+/// `--resume DIR --steps M` with M below the checkpoint's step is an error that changes
+/// nothing in the folder (it deleted the rows and frames past M and exited 0).
+#[test]
+fn resuming_to_a_step_before_the_checkpoint_is_an_error_and_loses_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    cli(
+        &[
+            "run",
+            "--steps",
+            "600",
+            "--threads",
+            "1",
+            "--checkpoint-every",
+            "500",
+            "--out",
+        ],
+        &out,
+    );
+    let snapshot = |d: &Path| -> Vec<(String, Vec<u8>)> {
+        let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+        for sub in [d.to_path_buf(), d.join("surface")] {
+            for e in std::fs::read_dir(&sub).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_file() {
+                    files.push((p.display().to_string(), std::fs::read(&p).unwrap()));
+                }
+            }
+        }
+        files.sort();
+        files
+    };
+    let before = snapshot(&out);
+    let o = needlesim()
+        .args(["run", "--steps", "200", "--threads", "1", "--resume"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "accepted: {stderr}");
+    assert!(
+        stderr.contains("step 200") && stderr.contains("500"),
+        "{stderr}"
+    );
+    assert!(before == snapshot(&out), "the folder changed");
+}
+
+/// A second run into a folder a running process writes to is refused and changes nothing
+/// (it deleted the first run's files while they were being written); the first run ends
+/// as it would alone, and the folder is free again after it.
+#[test]
+fn a_second_run_into_a_folder_in_use_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let mut first = needlesim()
+        .args(["run", "--steps", "50000", "--threads", "1", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let lock = out.join(needlesim::folder_lock::LOCK_FILE);
+    let t0 = std::time::Instant::now();
+    while !out.join("frames.csv").exists() {
+        assert!(t0.elapsed().as_secs() < 60, "the first run did not start");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(lock.exists(), "the running process holds a lock file");
+    let o = needlesim()
+        .args(["run", "--steps", "10", "--threads", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let still_running = first.try_wait().unwrap().is_none();
+    assert!(!o.status.success(), "accepted: {stderr}");
+    assert!(stderr.contains("in use"), "{stderr}");
+    assert!(still_running || stderr.contains("in use"));
+    assert!(first.wait().unwrap().success(), "the first run failed");
+    assert!(!lock.exists(), "the lock is released at the end");
+    let rows = std::fs::read_to_string(out.join("needle_force.csv"))
+        .unwrap()
+        .lines()
+        .count();
+    assert_eq!(rows, 50001, "the first run's rows are all there");
+    // Free again: a run into it now works.
+    cli(&["run", "--steps", "10", "--threads", "1", "--out"], &out);
+}

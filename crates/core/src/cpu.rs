@@ -31,14 +31,67 @@ pub enum Threading {
     Threads(usize),
 }
 
+/// Most threads a CPU backend may use ([`Threading::Threads`], and `RAYON_NUM_THREADS`
+/// for [`Threading::Parallel`]). Each thread takes a stack and a share of every step's
+/// synchronisation: past the machine's cores more threads only cost, and a count far
+/// beyond any machine is a typing error (5,000 threads made rayon's pool panic or the
+/// process abort, 100,000 took a minute to fail). 1,024 is above the hardware threads of
+/// the largest machines this runs on.
+pub const MAX_THREADS: usize = 1024;
+
 /// Error building a thread pool.
 #[derive(Debug, thiserror::Error)]
-#[error("cannot create a pool of {threads} threads: {message}")]
+#[error("cannot create a pool of {threads} threads{}: {message}", match source_name {
+    Some(s) => format!(" (from {s})"),
+    None => String::new(),
+})]
 pub struct ThreadPoolError {
     /// Threads asked for.
     pub threads: usize,
+    /// Where the count came from when not from the caller (`RAYON_NUM_THREADS`).
+    pub source_name: Option<&'static str>,
     /// The pool builder's message.
     pub message: String,
+}
+
+/// The thread count `RAYON_NUM_THREADS` asks rayon's global pool for, checked against
+/// [`MAX_THREADS`] before the pool exists (rayon panics when it cannot build it). `Ok(None)`
+/// when it is unset, empty or 0 (rayon then uses every hardware thread).
+fn global_pool_threads() -> Result<Option<usize>, ThreadPoolError> {
+    const VAR: &str = "RAYON_NUM_THREADS";
+    let Ok(text) = std::env::var(VAR) else {
+        return Ok(None);
+    };
+    if text.trim().is_empty() {
+        return Ok(None);
+    }
+    match text.trim().parse::<usize>() {
+        Ok(0) => Ok(None),
+        Ok(n) if n <= MAX_THREADS => Ok(Some(n)),
+        Ok(n) => Err(ThreadPoolError {
+            threads: n,
+            source_name: Some(VAR),
+            message: format!("at most {MAX_THREADS} threads"),
+        }),
+        Err(_) => Err(ThreadPoolError {
+            threads: 0,
+            source_name: Some(VAR),
+            message: format!("{text:?} is not a thread count"),
+        }),
+    }
+}
+
+/// Checks a thread count before a pool is built: 1 to [`MAX_THREADS`].
+pub fn check_threads(n: usize) -> Result<(), ThreadPoolError> {
+    if (1..=MAX_THREADS).contains(&n) {
+        Ok(())
+    } else {
+        Err(ThreadPoolError {
+            threads: n,
+            source_name: None,
+            message: format!("the count must be 1 to {MAX_THREADS}"),
+        })
+    }
 }
 
 /// CPU backend.
@@ -54,13 +107,18 @@ impl CpuBackend {
     pub fn new(tissue: Tissue, threading: Threading) -> Result<CpuBackend, ThreadPoolError> {
         let (pool, parallel) = match threading {
             Threading::Single => (None, false),
-            Threading::Parallel => (None, true),
+            Threading::Parallel => {
+                global_pool_threads()?;
+                (None, true)
+            }
             Threading::Threads(n) => {
+                check_threads(n)?;
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(n)
                     .build()
                     .map_err(|e| ThreadPoolError {
                         threads: n,
+                        source_name: None,
                         message: e.to_string(),
                     })?;
                 (Some(pool), n > 1)

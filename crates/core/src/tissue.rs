@@ -289,6 +289,7 @@ fn build_boundary(
     let n = rest.len();
     let mut fixed = vec![false; n];
     let mut boundary = Boundary::default();
+    let names = scene.held_set_names();
     let empty = |key: String| {
         SceneError::invalid(
             key,
@@ -304,7 +305,7 @@ fn build_boundary(
             nodes.iter().for_each(|&i| fixed[i as usize] = true);
         }
         boundary.held.push(HeldSet::new(
-            f.name.clone().unwrap_or_else(|| format!("fixed{s}")),
+            names[s].1.clone(),
             nodes,
             f.components.0,
             None,
@@ -313,10 +314,31 @@ fn build_boundary(
         ));
     }
     let held_by_fixed = fixed.clone();
+    // Which prescribed set moves each node, and in which components: a node follows one
+    // motion per component (two sets moving it apart were accepted, and the later one
+    // silently won).
+    let mut moved_by: Vec<[Option<usize>; 3]> = vec![[None; 3]; n];
     for (s, p) in scene.prescribed.iter().enumerate() {
         let nodes = p.nodes.select(rest);
         if nodes.is_empty() {
             return Err(empty(format!("prescribed[{s}]")));
+        }
+        for &i in &nodes {
+            for a in (0..3).filter(|&a| p.components.0[a]) {
+                let by = &mut moved_by[i as usize][a];
+                if let Some(other) = *by {
+                    return Err(SceneError::invalid(
+                        format!("prescribed[{s}]"),
+                        format!(
+                            "moves node {i} in {}, which prescribed[{other}] already moves: \
+                             a node follows one prescribed motion per component (make the \
+                             sets disjoint or prescribe different components)",
+                            ["x", "y", "z"][a]
+                        ),
+                    ));
+                }
+                *by = Some(s);
+            }
         }
         if let Some(&i) = nodes.iter().find(|&&i| held_by_fixed[i as usize]) {
             return Err(SceneError::invalid(
@@ -331,7 +353,7 @@ fn build_boundary(
             nodes.iter().for_each(|&i| fixed[i as usize] = true);
         }
         boundary.held.push(HeldSet::new(
-            p.name.clone().unwrap_or_else(|| format!("prescribed{s}")),
+            names[scene.fixed.len() + s].1.clone(),
             nodes,
             p.components.0,
             Some(p.motion),

@@ -96,6 +96,22 @@ pub enum CheckpointError {
     /// The checkpoint carries no scene text and none was given.
     #[error("the checkpoint carries no scene; give the scene it was taken with")]
     NoScene,
+    /// The state holds a value that is not finite (a diverged run): it is neither written
+    /// nor restored.
+    #[error(
+        "checkpoint {path}: node {node}'s {field} is not finite ({value:?}): the state \
+         diverged; a checkpoint of it would resume a broken run"
+    )]
+    NonFinite {
+        /// The file (empty when taken in memory).
+        path: PathBuf,
+        /// The first node found.
+        node: usize,
+        /// `position` or `velocity`.
+        field: &'static str,
+        /// The value (x, y, z).
+        value: [f32; 3],
+    },
 }
 
 /// The scene a checkpoint can carry: its TOML text and the folder relative paths resolve
@@ -175,6 +191,27 @@ impl Checkpoint {
         out
     }
 
+    /// The first active node whose position or velocity is not finite.
+    fn check_finite(&self, path: &Path) -> Result<(), CheckpointError> {
+        let b = &self.backend;
+        let n = b.n_active.min(b.positions.len()).min(b.velocities.len());
+        for (field, rows) in [("position", &b.positions), ("velocity", &b.velocities)] {
+            if let Some((node, v)) = rows[..n]
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !v[..3].iter().all(|x| x.is_finite()))
+            {
+                return Err(CheckpointError::NonFinite {
+                    path: path.to_path_buf(),
+                    node,
+                    field,
+                    value: [v[0], v[1], v[2]],
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Decodes a file's bytes; `path` names the file in errors.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Checkpoint, CheckpointError> {
         let path = path.to_path_buf();
@@ -224,16 +261,22 @@ impl Checkpoint {
                 reason: "the payload does not match its hash".into(),
             });
         }
-        postcard::from_bytes(payload).map_err(|e| CheckpointError::Corrupt {
-            path,
-            reason: e.to_string(),
-        })
+        let c: Checkpoint =
+            postcard::from_bytes(payload).map_err(|e| CheckpointError::Corrupt {
+                path: path.clone(),
+                reason: e.to_string(),
+            })?;
+        c.check_finite(&path)?;
+        Ok(c)
     }
 
     /// Writes the checkpoint to `path` atomically (a `.partial` file renamed over it), so
-    /// that an interruption leaves the previous checkpoint intact.
+    /// that an interruption leaves the previous checkpoint intact. Refuses a state that
+    /// is not finite, and a `path` (or its `.partial`) that exists and is not a regular
+    /// file: a checkpoint never replaces a device, a pipe or a folder.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), CheckpointError> {
         let path = path.as_ref();
+        self.check_finite(path)?;
         let io = |source| CheckpointError::Io {
             path: path.to_path_buf(),
             source,
@@ -241,6 +284,17 @@ impl Checkpoint {
         let mut tmp = path.as_os_str().to_owned();
         tmp.push(".partial");
         let tmp = PathBuf::from(tmp);
+        for p in [path, tmp.as_path()] {
+            match std::fs::symlink_metadata(p) {
+                Ok(m) if !m.file_type().is_file() => {
+                    return Err(io(std::io::Error::new(
+                        std::io::ErrorKind::InvalidInput,
+                        format!("{} exists and is not a regular file", p.display()),
+                    )));
+                }
+                _ => {}
+            }
+        }
         {
             let mut f = std::fs::File::create(&tmp).map_err(io)?;
             f.write_all(&self.to_bytes()).map_err(io)?;

@@ -74,13 +74,26 @@ impl PySineDevice {
 /// if given and capped at `max_force` N. The device is `device` (a `SineDevice`) or, by
 /// default, poses set with `set_device` from Python. While the loop runs, `sim.step` and
 /// `sim.set_pose` raise RuntimeError; reading `sim` briefly blocks the loop's tick.
-#[pyclass(module = "needlesim._needlesim", name = "HapticLoop")]
+///
+/// Every method takes the object shared (the class is frozen, its state behind short
+/// locks): while one thread waits in `join()`, a device thread can set the pose, read the
+/// force and stop the loop (with a mutable borrow held for the wait, every such call
+/// raised "Already borrowed").
+#[pyclass(module = "needlesim._needlesim", name = "HapticLoop", frozen)]
 pub(crate) struct PyHapticLoop {
-    haptic: Option<HapticLoop<Shared>>,
+    haptic: Mutex<Option<HapticLoop<Shared>>>,
     handle: Option<DeviceHandle>,
     busy: Arc<AtomicBool>,
-    /// What the loop measured, once stopped.
-    finished: Option<(HapticStats, Vec<TickRecord>)>,
+    /// What the loop measured once stopped, and the error it stopped on.
+    finished: Mutex<Option<Finished>>,
+}
+
+/// A stopped loop's stats, records and error.
+type Finished = (HapticStats, Vec<TickRecord>, Option<String>);
+
+/// Locks a mutex, a poisoned one included (its data is a plain value, still consistent).
+fn locked<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 fn record<'py>(py: Python<'py>, r: &TickRecord) -> PyResult<Bound<'py, PyDict>> {
@@ -123,10 +136,20 @@ fn stats_dict<'py>(
 
 impl PyHapticLoop {
     fn last(&self) -> Option<TickRecord> {
-        match (&self.haptic, &self.finished) {
-            (Some(h), _) => h.latest(),
-            (None, Some((_, r))) => r.last().copied(),
-            (None, None) => None,
+        if let Some(h) = locked(&self.haptic).as_ref() {
+            return h.latest();
+        }
+        locked(&self.finished)
+            .as_ref()
+            .and_then(|(_, r, _)| r.last().copied())
+    }
+
+    /// The stats of the stopped loop as a dict, or its error.
+    fn finished_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        match locked(&self.finished).as_ref() {
+            Some((_, _, Some(e))) => Err(runtime_error(e.clone())),
+            Some((s, _, None)) => stats_dict(py, s),
+            None => Err(runtime_error("the haptic loop failed to stop")),
         }
     }
 }
@@ -196,10 +219,10 @@ impl PyHapticLoop {
         };
         match started {
             Ok(haptic) => Ok(PyHapticLoop {
-                haptic: Some(haptic),
+                haptic: Mutex::new(Some(haptic)),
                 handle,
                 busy: sim.busy.clone(),
-                finished: None,
+                finished: Mutex::new(None),
             }),
             Err(e) => {
                 sim.busy.store(false, Ordering::Release);
@@ -234,16 +257,18 @@ impl PyHapticLoop {
     /// Whether the loop's thread is still ticking.
     #[getter]
     fn running(&self) -> bool {
-        self.haptic.as_ref().is_some_and(|h| h.running())
+        locked(&self.haptic).as_ref().is_some_and(|h| h.running())
     }
 
     /// Timing so far: ticks, overruns, saturated, target (s) and p50/p99/max of the tick
     /// period, the work per tick and the pose-to-force latency (s).
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        match (&self.haptic, &self.finished) {
-            (Some(h), _) => stats_dict(py, &h.stats()),
-            (None, Some((s, _))) => stats_dict(py, s),
-            (None, None) => Err(runtime_error("the haptic loop failed to stop")),
+        if let Some(h) = locked(&self.haptic).as_ref() {
+            return stats_dict(py, &h.stats());
+        }
+        match locked(&self.finished).as_ref() {
+            Some((s, _, _)) => stats_dict(py, s),
+            None => Err(runtime_error("the haptic loop failed to stop")),
         }
     }
 
@@ -251,45 +276,74 @@ impl PyHapticLoop {
     /// latency, depth (n,), device, needle, force, tissue (n, 3), saturated (bool list)
     /// and state (str list).
     fn records<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        match (&self.haptic, &self.finished) {
-            (Some(h), _) => records_dict(py, &h.records()),
-            (None, Some((_, r))) => records_dict(py, r),
-            (None, None) => Err(runtime_error("the haptic loop failed to stop")),
+        let live = locked(&self.haptic).as_ref().map(|h| h.records());
+        match live {
+            Some(r) => records_dict(py, &r),
+            None => match locked(&self.finished).as_ref() {
+                Some((_, r, _)) => records_dict(py, r),
+                None => Err(runtime_error("the haptic loop failed to stop")),
+            },
         }
     }
 
     /// Stops the loop (zero force sent last), waiting for its thread (without the
     /// interpreter lock), and returns its stats; raises RuntimeError if the loop had
     /// stopped on an error (divergence, device), naming it. The records stay readable.
-    fn stop<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let haptic = self
-            .haptic
+    fn stop<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        // Taken out under a short lock: the other methods stay usable while it stops.
+        let haptic = locked(&self.haptic)
             .take()
             .ok_or_else(|| runtime_error("the haptic loop was stopped already"))?;
         let stopped = py.detach(|| haptic.stop());
         self.busy.store(false, Ordering::Release);
-        let stopped = stopped.map_err(runtime_error)?;
-        self.finished = Some((stopped.stats, stopped.records));
-        if let Some(e) = stopped.error {
-            return Err(runtime_error(e));
-        }
-        stats_dict(py, &self.finished.as_ref().expect("just set").0)
+        let stopped = match stopped {
+            Ok(s) => s,
+            Err(e) => {
+                // Recorded, so that a thread waiting in `join()` ends with the same error.
+                let message = e.to_string();
+                *locked(&self.finished) =
+                    Some((HapticStats::default(), Vec::new(), Some(message.clone())));
+                return Err(runtime_error(message));
+            }
+        };
+        *locked(&self.finished) = Some((
+            stopped.stats,
+            stopped.records,
+            stopped.error.map(|e| e.to_string()),
+        ));
+        self.finished_stats(py)
     }
 
     /// Waits (without the interpreter lock, handling Ctrl-C every 50 ms) until the loop
-    /// stops by itself after `max_ticks` ticks, then returns like `stop`.
-    fn join<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// stops by itself after `max_ticks` ticks or another thread stops it, then returns
+    /// like `stop`. Other threads may call every method meanwhile.
+    fn join<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         while self.running() {
             py.detach(|| std::thread::sleep(Duration::from_millis(50)));
             py.check_signals()?;
         }
-        self.stop(py)
+        if locked(&self.haptic).is_some() {
+            return self.stop(py);
+        }
+        // Stopped by another thread (or while this one waited for the lock).
+        loop {
+            if locked(&self.finished).is_some() {
+                return self.finished_stats(py);
+            }
+            py.detach(|| std::thread::sleep(Duration::from_millis(5)));
+            py.check_signals()?;
+        }
     }
 }
 
 impl Drop for PyHapticLoop {
     fn drop(&mut self) {
-        if let Some(h) = self.haptic.take() {
+        let taken = self
+            .haptic
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
+        if let Some(h) = taken {
             let _ = h.stop();
             self.busy.store(false, Ordering::Release);
         }

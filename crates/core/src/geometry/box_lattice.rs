@@ -38,6 +38,12 @@ impl BoxLattice {
     /// into the box, so some axes may be shorter than the box by less than a spacing; the
     /// lattice is centred in the box. For a cube this reproduces the paper's sizes: 639 ->
     /// 648 (8x9x9), 2207 -> 2197, 3232 -> 3150, 5567 -> 5508, 10932 -> 11132.
+    ///
+    /// Every axis keeps its extent: a combination whose node cells (`dims h`) fall short of
+    /// the box on some axis is not taken. (On a thin box the rounding of the short axes
+    /// decided the spacing: a 1 m rod of 1 x 1 cm given 639 nodes became a 0.63 m rod, 31%
+    /// of its volume.) When no combination keeps every extent, the spacing is the one of
+    /// [`BoxLattice::with_spacing`] whose count is closest to `target`, centred.
     pub fn with_node_count(min: [f64; 3], max: [f64; 3], target: usize) -> BoxLattice {
         let ext: [f64; 3] = std::array::from_fn(|a| max[a] - min[a]);
         let longest = ext.iter().cloned().fold(0.0, f64::max);
@@ -67,6 +73,12 @@ impl BoxLattice {
             });
             let n = dims.iter().product::<usize>();
             let err = n.abs_diff(target);
+            let h = (0..3)
+                .map(|a| ext[a] / (dims[a] - 1) as f64)
+                .fold(f64::INFINITY, f64::min);
+            if (0..3).any(|a| dims[a] as f64 * h < ext[a] * (1.0 - 1e-9)) {
+                continue;
+            }
             let better = match best {
                 None => true,
                 Some((_, e)) => err < e,
@@ -75,7 +87,9 @@ impl BoxLattice {
                 best = Some((dims, err));
             }
         }
-        let dims = best.map(|b| b.0).unwrap_or([2; 3]);
+        let Some((dims, _)) = best else {
+            return Self::nearest_spacing(min, max, target);
+        };
         let h = (0..3)
             .map(|a| ext[a] / (dims[a] - 1) as f64)
             .fold(f64::INFINITY, f64::min);
@@ -85,6 +99,34 @@ impl BoxLattice {
             spacing: h,
             dims,
         }
+    }
+
+    /// The [`BoxLattice::with_spacing`] lattice whose node count is closest to `target`
+    /// (bisection on the spacing; the count falls as it grows), centred in the box. The
+    /// spacing is at most the box's thinnest side (two nodes across it), so a thin box
+    /// may get many more nodes than `target`.
+    fn nearest_spacing(min: [f64; 3], max: [f64; 3], target: usize) -> BoxLattice {
+        let ext: [f64; 3] = std::array::from_fn(|a| max[a] - min[a]);
+        let count = |h: f64| Self::with_spacing(min, max, h).len();
+        let longest = ext.iter().cloned().fold(0.0, f64::max);
+        let thinnest = ext.iter().cloned().fold(f64::INFINITY, f64::min);
+        let (mut lo, mut hi) = (longest * 1e-6, thinnest);
+        for _ in 0..200 {
+            let mid = (lo * hi).sqrt();
+            if count(mid) > target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let h = if count(lo).abs_diff(target) < count(hi).abs_diff(target) {
+            lo
+        } else {
+            hi
+        };
+        let mut l = Self::with_spacing(min, max, h);
+        l.origin = std::array::from_fn(|a| min[a] + 0.5 * (ext[a] - (l.dims[a] - 1) as f64 * h));
+        l
     }
 
     /// Number of nodes.
@@ -179,6 +221,46 @@ impl BoxLattice {
 mod tests {
     use super::*;
     use crate::geometry::signed_volume;
+
+    /// Thin and flat boxes keep their extent on every axis (the node cells cover the
+    /// box, so the nodes reach within a spacing of each face), with a node count near the
+    /// target: the 1 m rod of 1 x 1 cm with 639 nodes was cut to 0.63 m.
+    #[test]
+    fn node_count_lattices_keep_every_extent() {
+        for (max, target) in [
+            ([1.0, 0.01, 0.01], 639usize),
+            ([1.0, 0.01, 0.01], 5000),
+            ([0.2, 0.2, 0.02], 1000),
+            ([0.5, 0.05, 0.02], 2000),
+            ([0.1, 0.1, 0.1], 639),
+        ] {
+            let l = BoxLattice::with_node_count([0.0; 3], max, target);
+            for a in 0..3 {
+                let covered = l.dims[a] as f64 * l.spacing;
+                assert!(
+                    covered >= max[a] * (1.0 - 1e-9),
+                    "{max:?} {target}: axis {a} covers {covered} of {} ({:?}, h {})",
+                    max[a],
+                    l.dims,
+                    l.spacing
+                );
+                let lo = l.origin[a];
+                let hi = lo + (l.dims[a] - 1) as f64 * l.spacing;
+                assert!(
+                    lo >= -1e-12 && hi <= max[a] + 1e-12,
+                    "{max:?}: axis {a} spans {lo}..{hi} ({:?}, h {})",
+                    l.dims,
+                    l.spacing
+                );
+            }
+            let ratio = l.len() as f64 / target as f64;
+            assert!(
+                (0.5..2.0).contains(&ratio),
+                "{max:?} {target}: {} nodes",
+                l.len()
+            );
+        }
+    }
 
     #[test]
     fn paper_node_counts_within_three_percent() {

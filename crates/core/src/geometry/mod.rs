@@ -7,6 +7,7 @@
 
 pub mod box_lattice;
 pub mod cell_volume;
+mod file_guard;
 pub mod lattice;
 pub mod memory;
 pub mod obj;
@@ -137,7 +138,24 @@ fn build_with(
             })?;
             let lattice = match (spacing, nodes) {
                 (Some(h), _) => box_lattice::BoxLattice::with_spacing(*min, *max, *h),
-                (None, Some(n)) => box_lattice::BoxLattice::with_node_count(*min, *max, *n),
+                (None, Some(n)) => {
+                    let l = box_lattice::BoxLattice::with_node_count(*min, *max, *n);
+                    // A box thinner than the spacing its count implies cannot keep two
+                    // nodes across its thin side at that count.
+                    if l.len() > 2 * *n {
+                        return Err(SceneError::invalid(
+                            "tissue.geometry.nodes",
+                            format!(
+                                "{n} nodes cannot fill this box: its thinnest side needs a \
+                                 spacing of at most {:e} m, which takes at least {} nodes; \
+                                 give more nodes or a `spacing`",
+                                l.spacing,
+                                l.len()
+                            ),
+                        ));
+                    }
+                    l
+                }
                 (None, None) => {
                     return Err(SceneError::invalid(
                         "tissue.geometry",

@@ -8,6 +8,7 @@
 //! consistently oriented surface enclosing a positive volume; anything else is a
 //! [`GeometryError`] that names the file and the offending triangle or edge.
 
+use super::file_guard;
 use crate::error::{GeometryError, SceneError};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -32,11 +33,19 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _materials) =
-        tobj::load_obj(path, &options).map_err(|e| GeometryError::ObjLoad {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+    let load = |message: String| GeometryError::ObjLoad {
+        path: path.to_path_buf(),
+        message,
+    };
+    let file = std::fs::File::open(path).map_err(|e| load(e.to_string()))?;
+    // Without the material libraries: `mtllib` could name any file, a device or a pipe
+    // included, and the tissue needs no materials (file_guard module docs).
+    let (models, _materials) = file_guard::guarded(path, || {
+        tobj::load_obj_buf(&mut std::io::BufReader::new(file), &options, |_| {
+            Ok((Vec::new(), HashMap::new()))
+        })
+        .map_err(|e| load(e.to_string()))
+    })?;
     let mut raw_vertices: Vec<[f64; 3]> = Vec::new();
     let mut raw_triangles: Vec<[u32; 3]> = Vec::new();
     for model in &models {
@@ -58,7 +67,15 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
     from_triangles(path, &raw_vertices, &raw_triangles).map_err(Into::into)
 }
 
-/// A file vertex `p` times `scale`, or the error naming vertex `index` if not finite.
+/// Largest coordinate a surface vertex may have after `scale`, m. The geometry's own
+/// checks name `scale` for any body too large for f32 positions (about 1e6 m and up);
+/// they compute areas and volumes, products of two and three coordinates, which overflow
+/// f64 past about 1e100 m: a vertex near 1e298 m was reported as a degenerate triangle.
+/// Beyond 1e30 m the vertex itself is named.
+const MAX_COORDINATE: f64 = 1e30;
+
+/// A file vertex `p` times `scale`, or the error naming vertex `index` if not finite or
+/// beyond [`MAX_COORDINATE`].
 fn scaled_vertex(
     path: &Path,
     index: usize,
@@ -66,14 +83,24 @@ fn scaled_vertex(
     scale: f64,
 ) -> Result<[f64; 3], GeometryError> {
     let v = p.map(|c| c * scale);
-    if v.iter().all(|c| c.is_finite()) {
-        Ok(v)
-    } else {
-        Err(GeometryError::NonFiniteVertex {
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(GeometryError::NonFiniteVertex {
             path: path.to_path_buf(),
             vertex: index,
-        })
+        });
     }
+    // Far beyond any body, where the surface's areas and volumes overflow: the units
+    // are wrong ([`MAX_COORDINATE`]).
+    if v.iter().any(|c| c.abs() > MAX_COORDINATE) {
+        return Err(GeometryError::ObjLoad {
+            path: path.to_path_buf(),
+            message: format!(
+                "vertex {index} is at {v:?} m, beyond {MAX_COORDINATE:e} m from the origin: \
+                 check the file's units and the geometry's `scale`"
+            ),
+        });
+    }
+    Ok(v)
 }
 
 /// Loads a binary or ASCII STL file, scales its coordinates and checks that it bounds a
@@ -85,8 +112,21 @@ pub fn load_closed_stl(path: &Path, scale: f64) -> Result<Surface, SceneError> {
         path: path.to_path_buf(),
         message,
     };
-    let mut file = std::fs::File::open(path).map_err(|e| load(e.to_string()))?;
-    let mesh = stl_io::read_stl(&mut file).map_err(|e| load(e.to_string()))?;
+    let mut bytes = std::fs::read(path).map_err(|e| load(e.to_string()))?;
+    // `stl_io` takes a file whose first line starts with "solid " for ASCII: a binary
+    // file whose free-text header starts so has it blanked, an ASCII one whose `solid`
+    // line has no name gets one (it was read as binary).
+    if file_guard::check_stl(path, &bytes)? {
+        if bytes.starts_with(b"solid") {
+            bytes[..5].copy_from_slice(b"     ");
+        }
+    } else {
+        let start = bytes.len() - bytes.trim_ascii_start().len();
+        bytes.splice(..start + 5, *b"solid ").for_each(drop);
+    }
+    let mesh = file_guard::guarded(path, || {
+        stl_io::read_stl(&mut std::io::Cursor::new(&bytes)).map_err(|e| load(e.to_string()))
+    })?;
     let mut vertices = Vec::with_capacity(mesh.vertices.len());
     for (i, v) in mesh.vertices.iter().enumerate() {
         vertices.push(scaled_vertex(
@@ -114,7 +154,11 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
         path: path.to_path_buf(),
         message,
     };
-    let vtk = vtkio::Vtk::import(path).map_err(|e| load(e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| load(e.to_string()))?;
+    file_guard::check_vtk(path, &bytes)?;
+    let vtk = file_guard::guarded(path, || {
+        vtkio::Vtk::import(path).map_err(|e| load(e.to_string()))
+    })?;
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
     // Appends a piece's points and its cells (`(vertex lists, is a strip)`).
@@ -161,9 +205,11 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
     match vtk.data {
         DataSet::PolyData { pieces, .. } => {
             for piece in pieces {
-                let p = piece
-                    .into_loaded_piece_data(Some(path))
-                    .map_err(|e| load(e.to_string()))?;
+                let p = file_guard::guarded(path, || {
+                    piece
+                        .into_loaded_piece_data(Some(path))
+                        .map_err(|e| load(e.to_string()))
+                })?;
                 let mut cells: Vec<(Vec<u64>, bool)> = Vec::new();
                 if let Some(polys) = p.polys {
                     cells.extend(split(polys).into_iter().map(|c| (c, false)));
@@ -176,9 +222,11 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
         }
         DataSet::UnstructuredGrid { pieces, .. } => {
             for piece in pieces {
-                let p = piece
-                    .into_loaded_piece_data(Some(path))
-                    .map_err(|e| load(e.to_string()))?;
+                let p = file_guard::guarded(path, || {
+                    piece
+                        .into_loaded_piece_data(Some(path))
+                        .map_err(|e| load(e.to_string()))
+                })?;
                 let types = p.cells.types.clone();
                 let cells = split(p.cells.cell_verts)
                     .into_iter()

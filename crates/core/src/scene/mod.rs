@@ -162,6 +162,49 @@ impl Scene {
         Ok(scene)
     }
 
+    /// The names of the held sets as `reactions.csv` and Python's `reactions()` give them,
+    /// `[[fixed]]` first then `[[prescribed]]`, each with its key: the `name` given, or
+    /// `fixed<i>` / `prescribed<i>`.
+    pub fn held_set_names(&self) -> Vec<(String, String)> {
+        let fixed = self.fixed.iter().enumerate().map(|(i, f)| {
+            let name = f.name.clone().unwrap_or_else(|| format!("fixed{i}"));
+            (format!("fixed[{i}].name"), name)
+        });
+        let prescribed = self.prescribed.iter().enumerate().map(|(i, p)| {
+            let name = p.name.clone().unwrap_or_else(|| format!("prescribed{i}"));
+            (format!("prescribed[{i}].name"), name)
+        });
+        fixed.chain(prescribed).collect()
+    }
+
+    /// Held set names are column prefixes of `reactions.csv` and keys of a dict: each is
+    /// a non-empty name without separators, quotes, brackets or line breaks, and no two
+    /// are the same (with the defaults `fixed<i>` / `prescribed<i>` counted).
+    fn validate_set_names(&self) -> Result<(), SceneError> {
+        let names = self.held_set_names();
+        for (k, (key, name)) in names.iter().enumerate() {
+            if name.trim().is_empty()
+                || name.trim() != name
+                || name.contains([',', ';', '"', '\'', '\n', '\r', '\t', '[', ']'])
+            {
+                return Err(SceneError::invalid(
+                    key.clone(),
+                    format!(
+                        "must be a non-empty name without commas, semicolons, quotes, \
+                         brackets, tabs, line breaks or surrounding spaces, got {name:?}"
+                    ),
+                ));
+            }
+            if let Some((other, _)) = names[..k].iter().find(|(_, n)| n == name) {
+                return Err(SceneError::invalid(
+                    key.clone(),
+                    format!("`{name}` is also the name of {other}: each held set needs its own"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks every value's range, table by table. Called by the parsers; call it again
     /// after editing a scene in code.
     pub fn validate(&self) -> Result<(), SceneError> {
@@ -177,6 +220,7 @@ impl Scene {
         for (i, l) in self.load.iter().enumerate() {
             l.validate(&format!("load[{i}]"))?;
         }
+        self.validate_set_names()?;
         self.initial.validate()?;
         let dt = match self.physics.dt {
             TimeStep::Seconds(dt) => Some(dt),

@@ -1,0 +1,210 @@
+//! Bounds on what a surface file may make its reader allocate, checked before the reader
+//! runs, and a reader panic turned into an error naming the file.
+//!
+//! Surface files come from segmentation tools and other people's pipelines. The readers
+//! (`vtkio`, `stl_io`, `tobj`) size their buffers from the counts a file declares: a
+//! 300-byte legacy VTK file declaring `POINTS 1000000000 double` made the process abort
+//! on a 24 GB allocation, and inconsistent cell counts made `vtkio` panic. Here every
+//! count a file declares is checked against what its bytes can hold:
+//!
+//! - legacy VTK: `POINTS n` needs `3 n` numbers, a cell section `KEYWORD n size` `size`
+//!   numbers, `CELL_TYPES n` `n`; an ASCII number takes at least 2 bytes (a digit and a
+//!   separator), a binary one the size of its type (4 bytes for cell lists);
+//! - XML VTK (`.vtp`, `.vtu`): `NumberOf...` counts are bounded by the file's size times
+//!   zlib's largest compression ratio (1032:1, the only compressor this build reads)
+//!   over the 4 bytes of the smallest value type; parallel files (`.pvtp`, `.pvtu`, or a
+//!   `<Piece Source=...>`) name other files and are refused;
+//! - binary STL: the triangle count in its header must match the file's size (84 + 50 n
+//!   bytes); a file that starts with `solid` is read as ASCII.
+//!
+//! OBJ files are read without their material libraries (`mtllib` would open any file the
+//! OBJ names, a device or a pipe included; the tissue needs no materials).
+
+use crate::error::GeometryError;
+use std::path::Path;
+
+/// zlib's largest compression ratio (deflate's maximum, about 1032:1).
+const ZLIB_MAX_RATIO: u64 = 1032;
+
+/// The error for `path` with `message`.
+fn bad(path: &Path, message: String) -> GeometryError {
+    GeometryError::ObjLoad {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+/// Runs a reader, turning a panic inside it into an error naming the file.
+pub(crate) fn guarded<T>(
+    path: &Path,
+    read: impl FnOnce() -> Result<T, GeometryError>,
+) -> Result<T, GeometryError> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)) {
+        Ok(r) => r,
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| payload.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "no message".into());
+            Err(bad(
+                path,
+                format!("the file is malformed (its reader failed: {what})"),
+            ))
+        }
+    }
+}
+
+/// Checks the counts a VTK file declares against its size (module docs).
+pub(crate) fn check_vtk(path: &Path, bytes: &[u8]) -> Result<(), GeometryError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if matches!(ext.as_deref(), Some("pvtp" | "pvtu" | "pvtk")) {
+        return Err(bad(
+            path,
+            "parallel VTK files (.pvtp, .pvtu) name other files and are not read: merge the \
+             pieces into one .vtp or .vtu (ParaView: Merge Blocks, then Save Data)"
+                .into(),
+        ));
+    }
+    let size = bytes.len() as u64;
+    if bytes.starts_with(b"# vtk DataFile") {
+        check_legacy_vtk(path, bytes, size)
+    } else {
+        check_xml_vtk(path, bytes, size)
+    }
+}
+
+fn check_legacy_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryError> {
+    let mut lines = bytes.split(|&b| b == b'\n');
+    let binary = lines
+        .nth(2)
+        .is_some_and(|l| l.trim_ascii().eq_ignore_ascii_case(b"BINARY"));
+    for line in bytes.split(|&b| b == b'\n') {
+        let Ok(text) = std::str::from_utf8(line.trim_ascii()) else {
+            continue;
+        };
+        let words: Vec<&str> = text.split_ascii_whitespace().collect();
+        let Some(&keyword) = words.first() else {
+            continue;
+        };
+        let number = |i: usize| -> Result<u64, GeometryError> {
+            words
+                .get(i)
+                .and_then(|w| w.parse::<u64>().ok())
+                .ok_or_else(|| bad(path, format!("`{text}`: expected a count after {keyword}")))
+        };
+        // (values the section holds, bytes of one binary value)
+        let (values, width) = match keyword.to_ascii_uppercase().as_str() {
+            "POINTS" => {
+                let n = number(1)?;
+                let width = match words.get(2).map(|w| w.to_ascii_lowercase()) {
+                    Some(t) if t == "double" || t.ends_with("long") => 8,
+                    Some(t) if t == "short" || t == "unsigned_short" => 2,
+                    Some(t) if t == "char" || t == "unsigned_char" || t == "bit" => 1,
+                    _ => 4,
+                };
+                (n.saturating_mul(3), width)
+            }
+            "POLYGONS" | "TRIANGLE_STRIPS" | "VERTICES" | "LINES" | "CELLS" => {
+                let n = number(1)?;
+                let total = number(2)?;
+                if total < n {
+                    return Err(bad(
+                        path,
+                        format!("`{text}`: {n} cells cannot fit in {total} numbers"),
+                    ));
+                }
+                (total, 4)
+            }
+            "CELL_TYPES" | "POINT_DATA" | "CELL_DATA" => (number(1)?, 1),
+            _ => continue,
+        };
+        let least = if binary { width } else { 2 };
+        if values.saturating_mul(least) > size {
+            return Err(bad(
+                path,
+                format!(
+                    "`{text}` declares {values} numbers, more than the file's {size} bytes \
+                     can hold"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryError> {
+    let text = String::from_utf8_lossy(bytes);
+    if text.contains("<Piece Source") || text.contains("<Piece  Source") {
+        return Err(bad(
+            path,
+            "its pieces are other files (a parallel VTK file): merge them into one .vtp or \
+             .vtu"
+                .into(),
+        ));
+    }
+    let most = size.saturating_mul(ZLIB_MAX_RATIO) / 4;
+    for attribute in [
+        "NumberOfPoints",
+        "NumberOfCells",
+        "NumberOfPolys",
+        "NumberOfStrips",
+        "NumberOfVerts",
+        "NumberOfLines",
+    ] {
+        let pattern = format!("{attribute}=\"");
+        let mut rest: &str = &text;
+        while let Some(i) = rest.find(&pattern) {
+            rest = &rest[i + pattern.len()..];
+            let value = &rest[..rest.find('"').unwrap_or(rest.len())];
+            let n: u64 = value
+                .trim()
+                .parse()
+                .map_err(|_| bad(path, format!("{attribute}=\"{value}\" is not a count")))?;
+            // Points have 3 components.
+            let values = match attribute {
+                "NumberOfPoints" => n.saturating_mul(3),
+                _ => n,
+            };
+            if values > most {
+                return Err(bad(
+                    path,
+                    format!(
+                        "{attribute}=\"{n}\": more than a {size}-byte file can hold, even \
+                         compressed"
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks a binary STL's triangle count against the file's size; `Ok(true)` for a binary
+/// file, `Ok(false)` for one to read as ASCII (it starts with `solid` and its size is not
+/// that of a binary file with the count it would declare).
+pub(crate) fn check_stl(path: &Path, bytes: &[u8]) -> Result<bool, GeometryError> {
+    let size = bytes.len() as u64;
+    let declared = (size >= 84)
+        .then(|| u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64);
+    let binary_size = declared.map(|n| 84 + 50 * n);
+    if binary_size == Some(size) {
+        return Ok(true);
+    }
+    if bytes.trim_ascii_start().starts_with(b"solid") {
+        return Ok(false);
+    }
+    Err(bad(
+        path,
+        match declared {
+            Some(n) => format!(
+                "a binary STL declaring {n} triangles has {} bytes, this file {size}",
+                84 + 50 * n
+            ),
+            None => format!("{size} bytes: too short for an STL file"),
+        },
+    ))
+}

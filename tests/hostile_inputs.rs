@@ -1,0 +1,308 @@
+//! Hostile inputs (issue 45): surface files whose declared counts their bytes cannot hold,
+//! parallel VTK files, OBJ material libraries that name devices or pipes, thread counts
+//! far beyond any machine, held sets that conflict or whose names would corrupt the
+//! reaction CSV, and checkpoints of a diverged state or over something that is not a
+//! regular file. Each case failed before (a panic, an abort on a huge allocation, a hang,
+//! or a silent wrong result) and is now a typed error naming the file, key or set.
+
+use needlesim::{Scene, Tissue};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// A scene whose tissue is the surface file `file` (of `kind`) in `dir`.
+fn surface_scene(kind: &str, file: &str) -> String {
+    format!(
+        "[tissue]\nneighbours = 6\ngeometry = {{ kind = \"{kind}\", path = \"{file}\", spacing = 0.25 }}\n\
+         [material]\nmodel = \"mass_spring\"\nstiffness = 1.0\n"
+    )
+}
+
+/// The error building the tissue of `kind` file `file` in `dir`, within 10 s.
+fn surface_error(dir: &Path, kind: &str, file: &str) -> String {
+    let start = Instant::now();
+    let e = match Scene::from_toml_str(&surface_scene(kind, file), dir)
+        .and_then(|scene| Tissue::from_scene(&scene))
+    {
+        Ok(_) => panic!("{file}: accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        start.elapsed() < Duration::from_secs(10),
+        "{file}: {:?} to fail",
+        start.elapsed()
+    );
+    assert!(
+        e.contains(file),
+        "{file}: the error does not name the file: {e}"
+    );
+    e
+}
+
+const OCTA_POINTS: &str = "1 0 0\n-1 0 0\n0 1 0\n0 -1 0\n0 0 1\n0 0 -1\n";
+
+/// Legacy VTK poly data of the unit octahedron with `points` and `polygons` headers
+/// replaced as given.
+fn legacy_vtk(points_header: &str, polygons_header: &str) -> String {
+    format!(
+        "# vtk DataFile Version 3.0\noctahedron\nASCII\nDATASET POLYDATA\n{points_header}\n{OCTA_POINTS}\
+         {polygons_header}\n3 0 2 4\n3 2 1 4\n3 1 3 4\n3 3 0 4\n3 2 0 5\n3 1 2 5\n3 3 1 5\n3 0 3 5\n"
+    )
+}
+
+#[test]
+fn vtk_files_declaring_more_than_their_bytes_hold_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The good file loads (the checks let a real file through).
+    std::fs::write(
+        d.join("good.vtk"),
+        legacy_vtk("POINTS 6 float", "POLYGONS 8 32"),
+    )
+    .unwrap();
+    let scene = Scene::from_toml_str(&surface_scene("vtk", "good.vtk"), d).unwrap();
+    let t = Tissue::from_scene(&scene).unwrap();
+    assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{}", t.volume);
+    // A billion points in a 300-byte file: an abort on a 24 GB allocation before.
+    std::fs::write(
+        d.join("huge_points.vtk"),
+        legacy_vtk("POINTS 1000000000 double", "POLYGONS 8 32"),
+    )
+    .unwrap();
+    let e = surface_error(d, "vtk", "huge_points.vtk");
+    assert!(e.contains("POINTS 1000000000"), "{e}");
+    // Cell counts that disagree with the header: a panic in the reader before.
+    std::fs::write(
+        d.join("cells.vtk"),
+        legacy_vtk("POINTS 6 float", "POLYGONS 8 9000000000"),
+    )
+    .unwrap();
+    let e = surface_error(d, "vtk", "cells.vtk");
+    assert!(e.contains("POLYGONS"), "{e}");
+    std::fs::write(
+        d.join("few.vtk"),
+        legacy_vtk("POINTS 6 float", "POLYGONS 8 5"),
+    )
+    .unwrap();
+    surface_error(d, "vtk", "few.vtk");
+    // XML with a huge declared point count.
+    std::fs::write(
+        d.join("huge.vtp"),
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"0.1\">\n<PolyData>\n\
+         <Piece NumberOfPoints=\"4000000000\" NumberOfPolys=\"1\">\n</Piece>\n</PolyData>\n</VTKFile>\n",
+    )
+    .unwrap();
+    let e = surface_error(d, "vtk", "huge.vtp");
+    assert!(e.contains("NumberOfPoints"), "{e}");
+    // A parallel file whose piece is itself: a stack overflow before.
+    std::fs::write(
+        d.join("self.pvtp"),
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"PPolyData\" version=\"0.1\">\n<PPolyData>\n\
+         <Piece Source=\"self.pvtp\"/>\n</PPolyData>\n</VTKFile>\n",
+    )
+    .unwrap();
+    let e = surface_error(d, "vtk", "self.pvtp");
+    assert!(e.contains("parallel"), "{e}");
+    std::fs::copy(d.join("self.pvtp"), d.join("disguised.vtp")).unwrap();
+    let e = surface_error(d, "vtk", "disguised.vtp");
+    assert!(e.contains("other files"), "{e}");
+}
+
+#[test]
+fn stl_counts_are_checked_and_an_unnamed_ascii_solid_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A binary header declaring 4 billion triangles in 134 bytes.
+    let mut b = vec![0u8; 80];
+    b.extend_from_slice(&u32::MAX.to_le_bytes());
+    b.extend_from_slice(&[0u8; 50]);
+    std::fs::write(d.join("huge.stl"), &b).unwrap();
+    let e = surface_error(d, "stl", "huge.stl");
+    assert!(e.contains("4294967295 triangles"), "{e}");
+    // A valid ASCII STL whose `solid` line has no name (read as binary before).
+    let v = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let faces = [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    let mut s = String::from("solid\n");
+    for f in faces {
+        s.push_str("facet normal 0 0 0\nouter loop\n");
+        for i in f {
+            let p: [f64; 3] = v[i];
+            s.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
+        }
+        s.push_str("endloop\nendfacet\n");
+    }
+    s.push_str("endsolid\n");
+    std::fs::write(d.join("unnamed.stl"), s).unwrap();
+    let scene = Scene::from_toml_str(&surface_scene("stl", "unnamed.stl"), d).unwrap();
+    let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
+    assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{}", t.volume);
+}
+
+/// An OBJ whose `mtllib` names a FIFO (a hang before: the reader opened it) or a device
+/// loads without reading its materials.
+#[cfg(unix)]
+#[test]
+fn obj_material_libraries_are_not_opened() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fifo = d.join("materials.mtl");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    let faces = "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n";
+    let body = |lib: &str| {
+        format!("mtllib {lib}\nv 1 0 0\nv -1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\nusemtl a\n{faces}")
+    };
+    std::fs::write(d.join("fifo.obj"), body("materials.mtl")).unwrap();
+    std::fs::write(d.join("device.obj"), body("/dev/zero")).unwrap();
+    for file in ["fifo.obj", "device.obj"] {
+        let start = Instant::now();
+        let scene = Scene::from_toml_str(&surface_scene("obj", file), d).unwrap();
+        let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{file}: {}", t.volume);
+        assert!(start.elapsed() < Duration::from_secs(10), "{file}");
+    }
+}
+
+/// Thread counts far beyond any machine are errors before a pool is built (5,000 made
+/// rayon panic or the process abort; 100,000 took a minute to fail).
+#[test]
+fn thread_counts_beyond_the_maximum_are_errors() {
+    use needlesim::{CpuBackend, Threading};
+    let scene = Scene::from_toml_str(
+        "[tissue]\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.05 }\n\
+         [material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n[physics]\ndt = 1e-3\n",
+        Path::new("."),
+    )
+    .unwrap();
+    let tissue = Tissue::from_scene(&scene).unwrap();
+    for n in [0, 5000, 100_000] {
+        let start = Instant::now();
+        let e = CpuBackend::new(tissue.clone(), Threading::Threads(n))
+            .err()
+            .unwrap_or_else(|| panic!("{n} threads accepted"))
+            .to_string();
+        assert!(e.contains(&n.to_string()) && e.contains("1024"), "{e}");
+        assert!(start.elapsed() < Duration::from_secs(1));
+    }
+    assert!(CpuBackend::new(tissue, Threading::Threads(2)).is_ok());
+}
+
+const HELD: &str = "[tissue]\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], spacing = 0.05 }\n\
+                    [material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n[physics]\ndt = 1e-3\n";
+
+/// The error of `HELD` plus `extra`, from the scene or its tissue.
+fn held_error(extra: &str) -> String {
+    let text = format!("{HELD}{extra}");
+    match Scene::from_toml_str(&text, Path::new(".")) {
+        Err(e) => e.to_string(),
+        Ok(s) => match Tissue::from_scene(&s) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("accepted:\n{extra}"),
+        },
+    }
+}
+
+#[test]
+fn conflicting_or_badly_named_held_sets_are_errors() {
+    // Two prescribed sets moving the same nodes apart (the later silently won).
+    let e = held_error(
+        "[[prescribed]]\naxis = \"y\"\nabove = 0.099\ndisplacement = [0.0, -0.001, 0.0]\n\
+         [[prescribed]]\naxis = \"y\"\nabove = 0.099\ndisplacement = [0.0, 0.001, 0.0]\n",
+    );
+    assert!(
+        e.contains("prescribed[1]") && e.contains("prescribed[0]"),
+        "{e}"
+    );
+    // Different components of the same nodes are two motions, allowed.
+    let text = format!(
+        "{HELD}[[prescribed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"y\"]\ndisplacement = [0.0, -0.001, 0.0]\n\
+         [[prescribed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"x\"]\ndisplacement = [0.001, 0.0, 0.0]\n"
+    );
+    Tissue::from_scene(&Scene::from_toml_str(&text, Path::new(".")).unwrap()).unwrap();
+    // Names that would corrupt reactions.csv, and duplicates (defaults included).
+    for (name, key) in [
+        ("a,b", "fixed[0].name"),
+        ("line\nbreak", "fixed[0].name"),
+        ("quote\"d", "fixed[0].name"),
+        ("", "fixed[0].name"),
+    ] {
+        let e = held_error(&format!(
+            "[[fixed]]\naxis = \"x\"\nbelow = 0.001\nname = {name:?}\n"
+        ));
+        assert!(e.contains(key), "{name:?}: {e}");
+    }
+    let e = held_error(
+        "[[fixed]]\naxis = \"x\"\nbelow = 0.001\nname = \"clamp\"\n\
+         [[prescribed]]\naxis = \"x\"\nabove = 0.099\ndisplacement = [0.001, 0.0, 0.0]\nname = \"clamp\"\n",
+    );
+    assert!(
+        e.contains("prescribed[0].name") && e.contains("fixed[0].name"),
+        "{e}"
+    );
+    let e = held_error(
+        "[[fixed]]\naxis = \"x\"\nbelow = 0.001\n\
+         [[fixed]]\naxis = \"x\"\nabove = 0.099\nname = \"fixed0\"\n",
+    );
+    assert!(e.contains("fixed[1].name"), "{e}");
+}
+
+/// A vertex near 1e298 m (a double in a VTK file) is named as a units problem (it was
+/// reported as a degenerate triangle, products of its coordinates overflowing).
+#[test]
+fn a_vertex_beyond_any_body_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let far = legacy_vtk("POINTS 6 double", "POLYGONS 8 32").replacen("1 0 0\n", "1e298 0 0\n", 1);
+    std::fs::write(d.join("far.vtk"), far).unwrap();
+    let e = surface_error(d, "vtk", "far.vtk");
+    assert!(e.contains("vertex 0") && e.contains("scale"), "{e}");
+}
+
+/// A box given by `nodes` keeps its extent on every axis (a 1 m rod of 1 x 1 cm with 639
+/// nodes covered 31% of its volume), and a count too small for a thin box is an error
+/// naming `nodes`.
+#[test]
+fn node_count_boxes_keep_their_extent_or_name_the_count() {
+    let scene = |max: &str, n: usize| {
+        format!(
+            "[tissue]\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = {max}, nodes = {n} }}\n\
+             [material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n[physics]\ndt = 1e-3\n"
+        )
+    };
+    let t = Tissue::from_scene(
+        &Scene::from_toml_str(&scene("[1.0, 0.01, 0.01]", 639), Path::new(".")).unwrap(),
+    )
+    .unwrap();
+    assert!(t.volume > 0.95 * 1e-4 * 0.5, "volume {}", t.volume);
+    let mut hi = [f64::MIN; 3];
+    let mut lo = [f64::MAX; 3];
+    for p in &t.state.positions[..t.n_mesh] {
+        for a in 0..3 {
+            hi[a] = hi[a].max(p[a] as f64);
+            lo[a] = lo[a].min(p[a] as f64);
+        }
+    }
+    assert!(hi[0] - lo[0] > 0.95, "the rod spans {} m", hi[0] - lo[0]);
+    let e = match Scene::from_toml_str(&scene("[0.2, 0.2, 0.001]", 50), Path::new("."))
+        .and_then(|s| Tissue::from_scene(&s))
+    {
+        Ok(t) => panic!("accepted with {} nodes", t.n_mesh),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("tissue.geometry.nodes"), "{e}");
+}
