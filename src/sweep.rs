@@ -8,8 +8,7 @@ use needlesim_core::scene::BackendChoice;
 use needlesim_core::Scene;
 use needlesim_needle::NeedleSample;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Why a sweep could not start, or a variant failed.
 #[derive(Debug, thiserror::Error)]
@@ -31,6 +30,9 @@ pub enum SweepError {
     /// The variant's scene or run failed.
     #[error("{0}")]
     Run(String),
+    /// The sweep was stopped ([`sweep_each`]'s `stop`) before this variant finished.
+    #[error("interrupted before it finished")]
+    Interrupted,
 }
 
 /// One override: a dotted key and its value.
@@ -156,23 +158,49 @@ pub fn run_variant(
     base_dir: &Path,
     steps: Option<u64>,
 ) -> Result<VariantRun, SweepError> {
-    let run = || -> Result<VariantRun, Box<dyn std::error::Error>> {
+    run_variant_until(text, base_dir, steps, None)
+}
+
+/// Steps between two looks at the stop flag of a variant run.
+const STOP_CHECK_STEPS: u64 = 256;
+
+/// [`run_variant`], ending early with [`SweepError::Interrupted`] once `stop` is set.
+fn run_variant_until(
+    text: &str,
+    base_dir: &Path,
+    steps: Option<u64>,
+    stop: Option<&AtomicBool>,
+) -> Result<VariantRun, SweepError> {
+    let stopped = || stop.is_some_and(|s| s.load(Ordering::Relaxed));
+    let run = || -> Result<Option<VariantRun>, Box<dyn std::error::Error>> {
         let scene = Scene::from_toml_str(text, base_dir)?;
         let (mut sim, _) = start_simulation(&scene, Some(BackendChoice::Cpu), None)?;
         let steps = match steps {
             Some(n) => n,
             None => scene.run.steps_at(sim.dt())?,
         };
-        sim.step_n(steps)?;
+        let mut done = 0;
+        while done < steps {
+            if stopped() {
+                return Ok(None);
+            }
+            let n = STOP_CHECK_STEPS.min(steps - done);
+            sim.step_n(n)?;
+            done += n;
+        }
         sim.check()?;
         let samples = sim.take_history();
         let depths = samples
             .iter()
             .map(|s| sim.depth_of(s.tip, s.direction))
             .collect();
-        Ok(VariantRun { samples, depths })
+        Ok(Some(VariantRun { samples, depths }))
     };
-    run().map_err(|e| SweepError::Run(e.to_string()))
+    match run() {
+        Ok(Some(r)) => Ok(r),
+        Ok(None) => Err(SweepError::Interrupted),
+        Err(e) => Err(SweepError::Run(e.to_string())),
+    }
 }
 
 /// Runs every variant of `text` on `jobs` threads (at least 1), one CPU thread each;
@@ -184,27 +212,54 @@ pub fn sweep(
     steps: Option<u64>,
     jobs: usize,
 ) -> Vec<Result<VariantRun, SweepError>> {
-    let next = AtomicUsize::new(0);
-    let results: Vec<Mutex<Option<Result<VariantRun, SweepError>>>> =
-        variants.iter().map(|_| Mutex::new(None)).collect();
-    std::thread::scope(|s| {
-        for _ in 0..jobs.max(1).min(variants.len().max(1)) {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(v) = variants.get(i) else { break };
-                let r = apply(text, v).and_then(|t| run_variant(&t, base_dir, steps));
-                *results[i].lock().unwrap_or_else(|p| p.into_inner()) = Some(r);
-            });
-        }
+    let mut results: Vec<Option<Result<VariantRun, SweepError>>> =
+        variants.iter().map(|_| None).collect();
+    sweep_each(text, base_dir, variants, steps, jobs, None, |i, r| {
+        results[i] = Some(r)
     });
     results
         .into_iter()
-        .map(|m| {
-            m.into_inner()
-                .unwrap_or_else(|p| p.into_inner())
-                .unwrap_or_else(|| Err(SweepError::Run("not run (a worker panicked)".into())))
-        })
+        .map(|r| r.unwrap_or_else(|| Err(SweepError::Run("not run (a worker panicked)".into()))))
         .collect()
+}
+
+/// Runs every variant of `text` on `jobs` threads (at least 1), one CPU thread each, and
+/// hands each result to `done` on the calling thread as soon as it is there (in the order
+/// the variants finish), so that a caller can write it out at once: a sweep stopped or
+/// killed keeps what finished. Once `stop` is set no variant starts and the running ones
+/// end with [`SweepError::Interrupted`] within a few hundred steps.
+pub fn sweep_each(
+    text: &str,
+    base_dir: &Path,
+    variants: &[Vec<Override>],
+    steps: Option<u64>,
+    jobs: usize,
+    stop: Option<&AtomicBool>,
+    mut done: impl FnMut(usize, Result<VariantRun, SweepError>),
+) {
+    let next = AtomicUsize::new(0);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::scope(|s| {
+        for _ in 0..jobs.max(1).min(variants.len().max(1)) {
+            let tx = tx.clone();
+            let next = &next;
+            s.spawn(move || loop {
+                if stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+                    break;
+                }
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(v) = variants.get(i) else { break };
+                let r = apply(text, v).and_then(|t| run_variant_until(&t, base_dir, steps, stop));
+                if tx.send((i, r)).is_err() {
+                    break;
+                }
+            });
+        }
+        drop(tx);
+        for (i, r) in rx {
+            done(i, r);
+        }
+    });
 }
 
 #[cfg(test)]

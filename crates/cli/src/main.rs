@@ -193,6 +193,9 @@ fn main() -> std::process::ExitCode {
                 matches!(
                     c.downcast_ref::<RunError>(),
                     Some(RunError::Interrupted { .. })
+                ) || matches!(
+                    c.downcast_ref::<needlesim::sweep::SweepError>(),
+                    Some(needlesim::sweep::SweepError::Interrupted)
                 )
             });
             std::process::ExitCode::from(if interrupted { INTERRUPTED } else { 1 })
@@ -582,9 +585,17 @@ fn sweep(
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let t0 = std::time::Instant::now();
-    let results = sweep::sweep(&text.toml, &scene.base_dir, &variants, steps, jobs);
-    let wall = t0.elapsed().as_secs_f64();
+    // Rows go out as each variant finishes, flushed: a sweep stopped by SIGINT or SIGTERM
+    // (or killed) keeps every variant that finished; a second signal ends the process at
+    // once.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || {
+        if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
+            std::process::exit(INTERRUPTED as i32);
+        }
+    })
+    .context("installing the SIGINT/SIGTERM handler")?;
     let mut f = std::io::BufWriter::new(
         std::fs::File::create(&out).with_context(|| format!("creating {}", out.display()))?,
     );
@@ -594,37 +605,73 @@ fn sweep(
         "variant,{},step,time_s,depth_m,axial_force_n,lateral_force_n,state,error",
         keys.join(",")
     )?;
-    let mut failed = 0;
-    for (i, (v, r)) in variants.iter().zip(&results).enumerate() {
-        let values: Vec<String> = v
-            .iter()
-            .map(|(_, x)| x.to_string().replace(',', ";"))
-            .collect();
-        let values = values.join(",");
-        match r {
-            Ok(run) => {
-                for (s, depth) in run.samples.iter().zip(&run.depths) {
-                    writeln!(
-                        f,
-                        "{i},{values},{},{},{},{},{},{},",
-                        s.step,
-                        s.time,
-                        depth,
-                        s.force.axial,
-                        s.force.lateral,
-                        format!("{:?}", s.state).to_lowercase()
-                    )?;
+    f.flush()?;
+    let t0 = std::time::Instant::now();
+    let (mut failed, mut finished, mut interrupted) = (0, 0, 0);
+    let mut write_error: Option<std::io::Error> = None;
+    let mut write =
+        |i: usize, r: Result<sweep::VariantRun, sweep::SweepError>| -> std::io::Result<()> {
+            let values: Vec<String> = variants[i]
+                .iter()
+                .map(|(_, x)| x.to_string().replace(',', ";"))
+                .collect();
+            let values = values.join(",");
+            match r {
+                Ok(run) => {
+                    finished += 1;
+                    for (s, depth) in run.samples.iter().zip(&run.depths) {
+                        writeln!(
+                            f,
+                            "{i},{values},{},{},{},{},{},{},",
+                            s.step,
+                            s.time,
+                            depth,
+                            s.force.axial,
+                            s.force.lateral,
+                            format!("{:?}", s.state).to_lowercase()
+                        )?;
+                    }
+                }
+                Err(sweep::SweepError::Interrupted) => interrupted += 1,
+                Err(e) => {
+                    failed += 1;
+                    let msg = e.to_string().replace(['\n', '"'], " ");
+                    writeln!(f, "{i},{values},,,,,,,\"{msg}\"")?;
+                    eprintln!("variant {i} ({values}) failed: {msg}");
                 }
             }
-            Err(e) => {
-                failed += 1;
-                let msg = e.to_string().replace(['\n', '"'], " ");
-                writeln!(f, "{i},{values},,,,,,,\"{msg}\"")?;
-                eprintln!("variant {i} ({values}) failed: {msg}");
+            f.flush()
+        };
+    sweep::sweep_each(
+        &text.toml,
+        &scene.base_dir,
+        &variants,
+        steps,
+        jobs,
+        Some(&stop),
+        |i, r| {
+            if write_error.is_none() {
+                if let Err(e) = write(i, r) {
+                    write_error = Some(e);
+                }
             }
-        }
+        },
+    );
+    if let Some(e) = write_error {
+        return Err(e).with_context(|| format!("writing {}", out.display()));
     }
-    f.flush()?;
+    let wall = t0.elapsed().as_secs_f64();
+    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err(anyhow::Error::new(sweep::SweepError::Interrupted)).with_context(|| {
+            format!(
+                "sweep interrupted: {finished} of {} variants finished and written to {} \
+                 ({interrupted} stopped, {} not started)",
+                variants.len(),
+                out.display(),
+                variants.len() - finished - failed - interrupted
+            )
+        });
+    }
     say!(
         "sweep       {} variants ({failed} failed) on {jobs} threads in {wall:.1} s ({:.1} variants/min)\nwritten     {}",
         variants.len(),

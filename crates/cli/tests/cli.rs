@@ -325,6 +325,67 @@ fn view_window_draws_frames_on_the_simulations_device() {
     );
 }
 
+/// `needlesim sweep` writes each variant's rows as it finishes; SIGINT stops it with
+/// status 130 and the finished variants complete in the CSV (it wrote the CSV only at the
+/// end, so Ctrl-C lost every finished variant).
+#[cfg(unix)]
+#[test]
+fn sweep_streams_rows_and_keeps_the_finished_variants_on_sigint() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("sweep.csv");
+    let steps = 5000;
+    let child = needlesim()
+        .arg("sweep")
+        .arg(root.join("scenes/needle_insert_extract.toml"))
+        .args([
+            "--vary",
+            "needle.cutting=0.005,0.01,0.015,0.02,0.025,0.03,0.035,0.04,0.045,0.05,0.055,0.06,0.065,0.07,0.075,0.08,0.085,0.09,0.095,0.1,0.105,0.11,0.115,0.12",
+            "--steps",
+            &steps.to_string(),
+            "--jobs",
+            "1",
+            "--out",
+        ])
+        .arg(&csv)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for the first variant's rows.
+    let rows = |text: &str, v: &str| {
+        text.lines()
+            .filter(|l| l.split(',').next() == Some(v))
+            .count()
+    };
+    let t0 = std::time::Instant::now();
+    loop {
+        let text = std::fs::read_to_string(&csv).unwrap_or_default();
+        if rows(&text, "0") == steps {
+            break;
+        }
+        assert!(t0.elapsed().as_secs() < 120, "no variant finished");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let killed = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("sweep interrupted"), "{stderr}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let done: Vec<String> = (0..24)
+        .map(|v| v.to_string())
+        .filter(|v| rows(&text, v) > 0)
+        .collect();
+    assert!(!done.is_empty() && done.len() < 24, "{done:?}");
+    for v in &done {
+        assert_eq!(rows(&text, v), steps, "variant {v} is complete");
+    }
+}
+
 /// A key varied twice is an error before anything runs (it wrote two columns of one key,
 /// the later overriding the earlier).
 #[test]
