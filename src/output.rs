@@ -185,7 +185,11 @@ impl SurfaceWriter {
             }
             writeln!(out, "\n</DataArray>\n</{tag}>")
         };
-        cells(&mut out, "Verts", &verts, 1)?;
+        // No <Verts> section without vertices: an empty cell array is valid VTK, but vtkio
+        // (a reader users have, tests/outputs_read.rs) fails on it.
+        if !verts.is_empty() {
+            cells(&mut out, "Verts", &verts, 1)?;
+        }
         let flat: Vec<u32> = tris.iter().flatten().copied().collect();
         cells(&mut out, "Polys", &flat, 3)?;
         writeln!(out, "</Piece>\n</PolyData>\n</VTKFile>")?;
