@@ -182,6 +182,20 @@ fn load_with_text(scene: &Option<PathBuf>) -> Result<(Scene, String, SceneText)>
 /// Exit status of a run stopped by SIGINT or SIGTERM (128 + SIGINT, as shells report it).
 const INTERRUPTED: u8 = 130;
 
+/// A flag that SIGINT and SIGTERM set (the run or sweep looks at it between steps); a
+/// second signal ends the process at once with [`INTERRUPTED`].
+fn stop_on_signals() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || {
+        if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
+            std::process::exit(INTERRUPTED as i32);
+        }
+    })
+    .context("installing the SIGINT/SIGTERM handler")?;
+    Ok(stop)
+}
+
 fn main() -> std::process::ExitCode {
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -359,14 +373,7 @@ fn run(cli: Cli) -> Result<()> {
                 .unwrap_or_else(|| PathBuf::from("out").join(&stem));
             // SIGINT and SIGTERM stop the run at a step boundary with its files complete
             // up to the last frame; a second signal ends the process at once.
-            let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            let flag = stop.clone();
-            ctrlc::set_handler(move || {
-                if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
-                    std::process::exit(INTERRUPTED as i32);
-                }
-            })
-            .context("installing the SIGINT/SIGTERM handler")?;
+            let stop = stop_on_signals()?;
             let options = RunOptions {
                 out_dir: out.clone(),
                 steps,
@@ -588,14 +595,7 @@ fn sweep(
     // Rows go out as each variant finishes, flushed: a sweep stopped by SIGINT or SIGTERM
     // (or killed) keeps every variant that finished; a second signal ends the process at
     // once.
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let flag = stop.clone();
-    ctrlc::set_handler(move || {
-        if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
-            std::process::exit(INTERRUPTED as i32);
-        }
-    })
-    .context("installing the SIGINT/SIGTERM handler")?;
+    let stop = stop_on_signals()?;
     let mut f = std::io::BufWriter::new(
         std::fs::File::create(&out).with_context(|| format!("creating {}", out.display()))?,
     );
