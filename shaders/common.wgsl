@@ -10,6 +10,7 @@ struct Params {
     damping_factor: f32,
     stiffness: f32,
     spring_damping: f32,
+    // w = 1.0, an opaque one for integrate.wgsl's compensated sum.
     gravity: vec4<f32>,
     lambda: f32,
     mu: f32,

@@ -1,10 +1,13 @@
 // Symplectic Euler with implicit mass-proportional damping (integrator.rs):
 // v <- (v + dt (f w + g)) * damping_factor, x <- x + dt v; w = inverse mass, 0 = fixed.
+// The position update is a compensated sum: remainders keep each update's rounding error
+// (TwoSum) and add it to the next increment, so no increment below f32 resolution is lost.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> velocities: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> forces: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> remainders: array<vec4<f32>>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -20,5 +23,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let f = forces[i];
     let v = (velocities[i].xyz + params.dt * (f.xyz * x.w + params.gravity.xyz)) * params.damping_factor;
     velocities[i] = vec4<f32>(v, 0.0);
-    positions[i] = vec4<f32>(x.xyz + params.dt * v, x.w);
+    // TwoSum of x and the increment: x + d = s + e exactly. Shader compilers may treat
+    // float arithmetic as real arithmetic and fold (x + d) - x into d, which zeroes e
+    // (Mesa's lavapipe did); multiplying by params.gravity.w, 1.0 but unknown to the
+    // compiler, keeps each rounded intermediate.
+    let one = params.gravity.w;
+    let d = params.dt * v + remainders[i].xyz;
+    let s = (x.xyz + d) * one;
+    let dd = (s - x.xyz) * one;
+    let e = (x.xyz - (s - dd)) + (d - dd);
+    positions[i] = vec4<f32>(s, x.w);
+    remainders[i] = vec4<f32>(e, 0.0);
 }

@@ -36,7 +36,12 @@ fn resume(scene: &Scene, c: Checkpoint) -> Result<Simulation, SimulationError> {
 fn fingerprint(sim: &mut Simulation) -> (Vec<u32>, Vec<u32>, Vec<u8>, String) {
     let cap = sim.backend().capacity();
     let mut bits = Vec::new();
-    for f in [NodeField::Position, NodeField::Velocity, NodeField::Force] {
+    for f in [
+        NodeField::Position,
+        NodeField::Velocity,
+        NodeField::Force,
+        NodeField::PositionRemainder,
+    ] {
         let mut out = vec![[0.0f32; 4]; cap];
         sim.backend().read(f, 0..cap, &mut out).unwrap();
         bits.extend(out.iter().flatten().map(|x| x.to_bits()));

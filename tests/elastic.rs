@@ -291,6 +291,7 @@ fn each_model_allocates_only_its_arrays() {
         "position",
         "velocity",
         "force",
+        "position_remainder",
         "neighbour_index",
         "neighbour_weight",
     ];

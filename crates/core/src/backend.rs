@@ -20,6 +20,10 @@ pub enum NodeField {
     Velocity,
     /// Elastic forces of the last force evaluation.
     Force,
+    /// The part of each position below f32 resolution that the integrator carries
+    /// (xyz in metres, w = 0; [`crate::integrator`]). Writing [`NodeField::Position`]
+    /// clears it for the nodes written: a written position is exact.
+    PositionRemainder,
 }
 
 /// The nodes one request of [`Backend::read_many`] reads: a range, or a list (in its
@@ -143,6 +147,10 @@ pub trait Backend: Send {
         0
     }
     /// Overwrites `data.len()` nodes of `field` starting at `first`.
+    ///
+    /// Writing [`NodeField::Position`] also sets the written nodes'
+    /// [`NodeField::PositionRemainder`] to zero; write the remainder after the positions
+    /// to restore both (checkpoints do).
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError>;
     /// Overwrites the neighbour rows of nodes `first..first + index.len() / K`.
     fn write_neighbour_rows(

@@ -201,11 +201,13 @@ impl Backend for CpuBackend {
         };
         let t = &mut self.tissue;
         let params = t.step;
-        let forces = &t.state.forces;
-        threads.for_each_node(
-            &mut t.state.positions[..n],
-            &mut t.state.velocities[..n],
-            |i, x, v| integrate_node(x, v, forces[i], &params),
+        let s = &mut t.state;
+        let forces = &s.forces;
+        threads.for_each_node3(
+            &mut s.positions[..n],
+            &mut s.velocities[..n],
+            &mut s.position_remainders[..n],
+            |i, x, v, r| integrate_node(x, v, r, forces[i], &params),
         );
         t.shape.end_step();
         self.steps += 1;
@@ -230,6 +232,7 @@ impl Backend for CpuBackend {
             NodeField::Position => &self.tissue.state.positions,
             NodeField::Velocity => &self.tissue.state.velocities,
             NodeField::Force => &self.tissue.state.forces,
+            NodeField::PositionRemainder => &self.tissue.state.position_remainders,
         };
         out.copy_from_slice(&src[range]);
         Ok(())
@@ -238,10 +241,15 @@ impl Backend for CpuBackend {
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError> {
         let range = first..first + data.len();
         check_range(&range, self.capacity(), "allocated")?;
+        let s = &mut self.tissue.state;
         let dst = match field {
-            NodeField::Position => &mut self.tissue.state.positions,
-            NodeField::Velocity => &mut self.tissue.state.velocities,
-            NodeField::Force => &mut self.tissue.state.forces,
+            NodeField::Position => {
+                s.position_remainders[range.clone()].fill([0.0; 4]);
+                &mut s.positions
+            }
+            NodeField::Velocity => &mut s.velocities,
+            NodeField::Force => &mut s.forces,
+            NodeField::PositionRemainder => &mut s.position_remainders,
         };
         dst[range].copy_from_slice(data);
         Ok(())

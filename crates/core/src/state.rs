@@ -18,6 +18,9 @@ pub struct NodeState {
     pub velocities: Vec<Vec4>,
     /// Elastic forces of the last force evaluation, in newtons.
     pub forces: Vec<Vec4>,
+    /// The part of each position below f32 resolution, in metres (w = 0): the
+    /// integrator's compensated sum ([`crate::integrator`]).
+    pub position_remainders: Vec<Vec4>,
 }
 
 impl NodeState {
@@ -33,6 +36,7 @@ impl NodeState {
             positions: p,
             velocities: vec![[0.0; 4]; capacity],
             forces: vec![[0.0; 4]; capacity],
+            position_remainders: vec![[0.0; 4]; capacity],
         }
     }
 

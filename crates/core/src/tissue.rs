@@ -222,6 +222,10 @@ impl Tissue {
                 bytes: bytes(&self.state.forces),
             },
             ArrayInfo {
+                name: "position_remainder",
+                bytes: bytes(&self.state.position_remainders),
+            },
+            ArrayInfo {
                 name: "neighbour_index",
                 bytes: bytes(&self.neighbours.index),
             },

@@ -117,7 +117,7 @@ impl GpuBackend {
             damping_factor: step.damping_factor,
             stiffness: 0.0,
             spring_damping: 0.0,
-            gravity: [step.gravity[0], step.gravity[1], step.gravity[2], 0.0],
+            gravity: [step.gravity[0], step.gravity[1], step.gravity[2], 1.0],
             lambda: 0.0,
             mu: 0.0,
             volume_stiffness: 0.0,
@@ -162,6 +162,10 @@ impl GpuBackend {
             positions: b("positions", bytemuck::cast_slice(&st.positions)),
             velocities: b("velocities", bytemuck::cast_slice(&st.velocities)),
             forces: b("forces", bytemuck::cast_slice(&st.forces)),
+            position_remainders: b(
+                "position_remainders",
+                bytemuck::cast_slice(&st.position_remainders),
+            ),
             nb_index: b(
                 "neighbour_index",
                 &layout::to_slot_major(bytemuck::cast_slice(&nb.index), nb.k, capacity),
@@ -521,6 +525,7 @@ impl GpuBackend {
             NodeField::Position => &self.buffers.positions,
             NodeField::Velocity => &self.buffers.velocities,
             NodeField::Force => &self.buffers.forces,
+            NodeField::PositionRemainder => &self.buffers.position_remainders,
         }
     }
 
@@ -628,11 +633,14 @@ impl Backend for GpuBackend {
 
     fn write(&mut self, field: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError> {
         check_range(&(first..first + data.len()), self.capacity, "allocated")?;
-        self.ctx.queue.write_buffer(
-            self.field(field),
-            (first * 16) as u64,
-            bytemuck::cast_slice(data),
-        );
+        let offset = (first * 16) as u64;
+        let queue = &self.ctx.queue;
+        queue.write_buffer(self.field(field), offset, bytemuck::cast_slice(data));
+        if field == NodeField::Position && !data.is_empty() {
+            // A written position is exact (Backend::write).
+            let zeros = vec![0u8; data.len() * 16];
+            queue.write_buffer(&self.buffers.position_remainders, offset, &zeros);
+        }
         Ok(())
     }
 

@@ -14,6 +14,8 @@ pub enum Binding {
     Velocities,
     /// Node forces.
     Forces,
+    /// The integrator's position remainders (`needlesim_core::integrator`).
+    PositionRemainders,
     /// Neighbour indices, K per node.
     NeighbourIndex,
     /// Neighbour weights, K per node.
@@ -29,6 +31,7 @@ pub struct Buffers {
     pub(crate) positions: wgpu::Buffer,
     pub(crate) velocities: wgpu::Buffer,
     pub(crate) forces: wgpu::Buffer,
+    pub(crate) position_remainders: wgpu::Buffer,
     pub(crate) nb_index: wgpu::Buffer,
     pub(crate) nb_weight: wgpu::Buffer,
     /// The model's arrays (those of `ShapeInfo::bytes`).
@@ -45,6 +48,7 @@ impl Buffers {
             Binding::Positions => &self.positions,
             Binding::Velocities => &self.velocities,
             Binding::Forces => &self.forces,
+            Binding::PositionRemainders => &self.position_remainders,
             Binding::NeighbourIndex => &self.nb_index,
             Binding::NeighbourWeight => &self.nb_weight,
             Binding::Model(array) => {
@@ -60,6 +64,7 @@ impl Buffers {
             ("position", self.positions.size()),
             ("velocity", self.velocities.size()),
             ("force", self.forces.size()),
+            ("position_remainder", self.position_remainders.size()),
             ("neighbour_index", self.nb_index.size()),
             ("neighbour_weight", self.nb_weight.size()),
         ];

@@ -125,8 +125,8 @@ impl Kernel {
     }
 }
 
-/// `integrate.wgsl`: symplectic Euler with damping and fixed nodes (the GPU twin of
-/// [`needlesim_core::integrator::integrate_node`]).
+/// `integrate.wgsl`: symplectic Euler with damping and fixed nodes, positions summed with
+/// their remainders (the GPU twin of [`needlesim_core::integrator::integrate_node`]).
 pub const INTEGRATE_NODE: KernelSpec = KernelSpec {
     name: "integrate",
     sources: &[COMMON, INTEGRATE],
@@ -136,5 +136,6 @@ pub const INTEGRATE_NODE: KernelSpec = KernelSpec {
         (1, Binding::Positions),
         (2, Binding::Velocities),
         (3, Binding::Forces),
+        (4, Binding::PositionRemainders),
     ],
 };

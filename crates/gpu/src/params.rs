@@ -25,7 +25,7 @@ pub struct Params {
     pub stiffness: f32,
     /// Mass-spring spring damping, N s/m.
     pub spring_damping: f32,
-    /// Gravity, m/s^2 (w unused).
+    /// Gravity, m/s^2; w = 1.0, a one the shader compiler cannot see (integrate.wgsl).
     pub gravity: [f32; 4],
     /// Lame lambda, Pa (continuum models).
     pub lambda: f32,

@@ -33,7 +33,7 @@ use thiserror::Error;
 /// First bytes of a checkpoint file.
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
 /// Format version this build writes and reads. Raised whenever the payload changes.
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 const HEADER: usize = MAGIC.len() + 4 + 8 + 8;
 
 /// Why a checkpoint cannot be written, read or restored.
@@ -139,6 +139,8 @@ pub(crate) struct BackendSnapshot {
     pub positions: Vec<Vec4>,
     pub velocities: Vec<Vec4>,
     pub forces: Vec<Vec4>,
+    /// The integrator's position remainders (format version 5 on).
+    pub position_remainders: Vec<Vec4>,
     /// Every shape array, in [`needlesim_core::models::ShapeInfo::bytes`] order.
     pub shape: Vec<Vec<u8>>,
 }
@@ -194,8 +196,14 @@ impl Checkpoint {
     /// The first active node whose position or velocity is not finite.
     fn check_finite(&self, path: &Path) -> Result<(), CheckpointError> {
         let b = &self.backend;
-        let n = b.n_active.min(b.positions.len()).min(b.velocities.len());
-        for (field, rows) in [("position", &b.positions), ("velocity", &b.velocities)] {
+        let n = [&b.positions, &b.velocities, &b.position_remainders]
+            .iter()
+            .fold(b.n_active, |n, a| n.min(a.len()));
+        for (field, rows) in [
+            ("position", &b.positions),
+            ("velocity", &b.velocities),
+            ("position remainder", &b.position_remainders),
+        ] {
             if let Some((node, v)) = rows[..n]
                 .iter()
                 .enumerate()

@@ -17,14 +17,14 @@ pub use crate::scene::DEFAULT_MAX_MEMORY_GIB;
 pub const LATTICE_BYTES_PER_POINT: f64 = 8.0;
 
 /// Bytes of one node, counted conservatively: the simulation arrays (positions,
-/// velocities and forces as 3 x 16 bytes, K neighbour slots of 8 bytes, the model's shape
+/// velocities, forces and position remainders as 4 x 16 bytes, K neighbour slots of 8 bytes, the model's shape
 /// arrays) twice (the backend's and the node editor's or device's copy), plus what
 /// building needs once (f64 rest position, cell volume and mass, the f32 rest position,
 /// K f64 neighbour distances and the kernel length).
 pub fn bytes_per_node(material: &Material, k: usize) -> f64 {
     let k = k as f64;
     let shape = material.shape_bytes_per_node(k);
-    let simulation = 48.0 + 8.0 * k + shape;
+    let simulation = 64.0 + 8.0 * k + shape;
     let build = 24.0 + 8.0 + 8.0 + 16.0 + 8.0 * k + 8.0;
     2.0 * simulation + build
 }

@@ -19,10 +19,11 @@ impl Simulation {
             b.read(f, 0..cap, &mut out)?;
             Ok(out)
         };
-        let (positions, velocities, forces) = (
+        let (positions, velocities, forces, position_remainders) = (
             field(NodeField::Position)?,
             field(NodeField::Velocity)?,
             field(NodeField::Force)?,
+            field(NodeField::PositionRemainder)?,
         );
         let mut shape = Vec::new();
         for (name, bytes) in self.editor.shape().bytes() {
@@ -39,6 +40,7 @@ impl Simulation {
                 positions,
                 velocities,
                 forces,
+                position_remainders,
                 shape,
             },
             editor: self.editor.snapshot(),
@@ -68,9 +70,14 @@ impl Simulation {
         }
         let cap = self.backend.capacity();
         let bs = c.backend;
-        if [&bs.positions, &bs.velocities, &bs.forces]
-            .iter()
-            .any(|a| a.len() != cap)
+        if [
+            &bs.positions,
+            &bs.velocities,
+            &bs.forces,
+            &bs.position_remainders,
+        ]
+        .iter()
+        .any(|a| a.len() != cap)
             || bs.n_active > cap
         {
             return Err(corrupt(format!("node arrays do not fit {cap} node slots")).into());
@@ -97,6 +104,8 @@ impl Simulation {
         b.write(NodeField::Position, 0, &bs.positions)?;
         b.write(NodeField::Velocity, 0, &bs.velocities)?;
         b.write(NodeField::Force, 0, &bs.forces)?;
+        // After the positions, whose write clears it.
+        b.write(NodeField::PositionRemainder, 0, &bs.position_remainders)?;
         let nb = self.editor.neighbours();
         b.write_neighbour_rows(0, &nb.index, &nb.weight)?;
         let names: Vec<_> = self.editor.shape().bytes().iter().map(|a| a.0).collect();
