@@ -4,7 +4,6 @@
 //! `needlesim-report`, `needle_plots`).
 
 use needlesim_needle::{PunctureState, Simulation};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Column names of `needle_force.csv`. `depth_m` is the tip's distance past the point
@@ -22,6 +21,37 @@ use std::path::{Path, PathBuf};
 pub const NEEDLE_CSV_HEADER: &str = "step,time_s,depth_m,axial_force_n,lateral_force_n,state,\
 active_nodes,needle_nodes,region,tissue_depth_m,tip_force_n,torque_nm";
 
+/// One row of `needle_force.csv`, the columns of [`NEEDLE_CSV_HEADER`] in order. Written
+/// and read with the `csv` crate (RFC 4180 quoting: a region name with a comma or a quote
+/// round-trips); [`read_needle_csv`] reads a file back.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NeedleRow {
+    /// Step number.
+    pub step: u64,
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// Tip depth past first contact along the needle, m.
+    pub depth_m: f64,
+    /// Axial force, N (positive: the tissue resists insertion).
+    pub axial_force_n: f64,
+    /// Lateral force, N.
+    pub lateral_force_n: f64,
+    /// `outside`, `touching` or `inside`.
+    pub state: String,
+    /// Simulated nodes.
+    pub active_nodes: usize,
+    /// Nodes on the needle.
+    pub needle_nodes: usize,
+    /// The region the tip is in, empty while it is not inside.
+    pub region: String,
+    /// Tip depth in the undeformed tissue, m; empty (`None`) while not in contact.
+    pub tissue_depth_m: Option<f64>,
+    /// The tip elements' share of the axial force, N.
+    pub tip_force_n: f64,
+    /// Friction torque about the needle's axis, N m.
+    pub torque_nm: f64,
+}
+
 fn state_name(s: PunctureState) -> &'static str {
     match s {
         PunctureState::Outside => "outside",
@@ -30,11 +60,21 @@ fn state_name(s: PunctureState) -> &'static str {
     }
 }
 
+/// `x` to 7 significant digits, the resolution the file has always had (`{:.6e}`): the
+/// forces come from f32 node arrays, and the file stays half the size of full f64 text.
+fn sig7(x: f64) -> f64 {
+    if x.is_finite() {
+        format!("{x:.6e}").parse().unwrap_or(x)
+    } else {
+        x
+    }
+}
+
 /// Streams `needle_force.csv`: [`NeedleCsv::append`] writes the steps recorded since its
 /// last call and flushes them.
 pub struct NeedleCsv {
     path: PathBuf,
-    out: std::io::BufWriter<std::fs::File>,
+    out: csv::Writer<std::fs::File>,
     /// Step of the last row written.
     written: Option<u64>,
 }
@@ -43,8 +83,10 @@ impl NeedleCsv {
     /// Creates `dir/needle_force.csv` with its header.
     pub fn create(dir: &Path) -> std::io::Result<NeedleCsv> {
         let path = dir.join("needle_force.csv");
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&path)?);
-        writeln!(out, "{NEEDLE_CSV_HEADER}")?;
+        let mut out = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(std::fs::File::create(&path)?);
+        out.write_record(NEEDLE_CSV_HEADER.split(','))?;
         out.flush()?;
         Ok(NeedleCsv {
             path,
@@ -66,24 +108,24 @@ impl NeedleCsv {
         let h = sim.history();
         let from = h.partition_point(|s| self.written.is_some_and(|w| s.step <= w));
         for s in &h[from..] {
-            writeln!(
-                self.out,
-                "{},{:.6e},{:.6e},{:.6e},{:.6e},{},{},{},{},{},{:.6e},{:.6e}",
-                s.step,
-                s.time,
-                sim.depth_of(s.tip, s.direction),
-                s.force.axial,
-                s.force.lateral,
-                state_name(s.state),
-                s.active_nodes,
-                s.needle_nodes,
-                s.region
-                    .and_then(|r| sim.region_names().get(r as usize))
-                    .map_or("", |n| n.as_str()),
-                s.tissue_depth.map_or(String::new(), |d| format!("{d:.6e}")),
-                s.force.tip,
-                s.force.torque,
-            )?;
+            let region = s
+                .region
+                .and_then(|r| sim.region_names().get(r as usize))
+                .map_or("", |n| n.as_str());
+            self.out.serialize(NeedleRow {
+                step: s.step,
+                time_s: sig7(s.time),
+                depth_m: sig7(sim.depth_of(s.tip, s.direction)),
+                axial_force_n: sig7(s.force.axial),
+                lateral_force_n: sig7(s.force.lateral),
+                state: state_name(s.state).to_string(),
+                active_nodes: s.active_nodes,
+                needle_nodes: s.needle_nodes,
+                region: region.to_string(),
+                tissue_depth_m: s.tissue_depth.map(sig7),
+                tip_force_n: sig7(s.force.tip),
+                torque_nm: sig7(s.force.torque),
+            })?;
         }
         self.written = sim.history().last().map(|s| s.step).or(self.written);
         self.out.flush()
@@ -92,5 +134,61 @@ impl NeedleCsv {
     /// The file's path.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+}
+
+/// The rows of the `needle_force.csv` at `path`, checking its header; errors name the
+/// file and the line.
+pub fn read_needle_csv(path: &Path) -> Result<Vec<NeedleRow>, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    parse_needle_csv(file, &path.display().to_string())
+}
+
+/// The rows of a `needle_force.csv` read from `input`; `name` names it in errors.
+pub fn parse_needle_csv(input: impl std::io::Read, name: &str) -> Result<Vec<NeedleRow>, String> {
+    let mut r = csv::Reader::from_reader(input);
+    let header = r.headers().map_err(|e| format!("{name}: {e}"))?;
+    if !header.iter().eq(NEEDLE_CSV_HEADER.split(',')) {
+        return Err(format!(
+            "{name}: not a needle_force.csv (unexpected header)"
+        ));
+    }
+    r.deserialize()
+        .map(|row| row.map_err(|e| format!("{name}: {e}")))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The header constant and the row type name the same columns in the same order.
+    #[test]
+    fn the_header_is_the_row_type() {
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.serialize(NeedleRow {
+            step: 1,
+            time_s: 0.0,
+            depth_m: 0.0,
+            axial_force_n: 0.0,
+            lateral_force_n: 0.0,
+            state: "outside".into(),
+            active_nodes: 0,
+            needle_nodes: 0,
+            region: String::new(),
+            tissue_depth_m: None,
+            tip_force_n: 0.0,
+            torque_nm: 0.0,
+        })
+        .unwrap();
+        let text = String::from_utf8(w.into_inner().unwrap()).unwrap();
+        assert_eq!(text.lines().next(), Some(NEEDLE_CSV_HEADER));
+    }
+
+    #[test]
+    fn seven_digits() {
+        assert_eq!(sig7(0.123456789), 0.1234568);
+        assert_eq!(sig7(-1.5e-9), -1.5e-9);
+        assert!(sig7(f64::NAN).is_nan());
     }
 }

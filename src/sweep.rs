@@ -228,6 +228,13 @@ pub fn sweep(
 /// the variants finish), so that a caller can write it out at once: a sweep stopped or
 /// killed keeps what finished. Once `stop` is set no variant starts and the running ones
 /// end with [`SweepError::Interrupted`] within a few hundred steps.
+///
+/// The pool is `jobs` scoped threads taking the next variant from a shared counter, not
+/// rayon's: variants start in the order given (rayon's work stealing splits the list and
+/// starts its halves at once, so a sweep stopped early would have started variants from
+/// the middle of the grid), and results reach the calling thread while the workers run
+/// (rayon's `install` blocks the caller, which would need a thread of its own to drain
+/// them). Each variant runs one CPU thread, so the pools do not nest.
 pub fn sweep_each(
     text: &str,
     base_dir: &Path,

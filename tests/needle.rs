@@ -9,6 +9,7 @@ use common::{cpu_sim, gpu_sim, same_states_force_difference};
 use needlesim::core::models::ShapeArray;
 use needlesim::core::{NodeSelection, Vec4};
 use needlesim::needle::{PunctureState, Simulation};
+use needlesim::needle_output::read_needle_csv;
 use needlesim::{
     run_scene, Backend, CpuBackend, NodeField, RunOptions, Scene, SimError, Threading,
 };
@@ -115,37 +116,46 @@ fn insert_and_extract_adds_and_removes_nodes_and_restores_every_array() {
 /// surface is given a membrane of 0.15 N (three times the cutting force): under the
 /// scene's cone angle rule, the sub-grid contact of an 18 G tip on this soft tissue
 /// punctures at 0.015 N, below the cutting force, so there is no drop to see.
+///
+/// The far half of the cube is a region named with a comma and quotes: `needle_force.csv`
+/// quotes it and the csv reader gives it back whole.
 #[test]
 fn force_curve_rises_drops_at_puncture_and_turns_negative_on_extraction() {
     let text = INSERT_EXTRACT.replace(
         "cutting = 0.05 ",
         "puncture_force = 0.15\ncontact_radius = 0.003\ncutting = 0.05 ",
-    );
-    assert_ne!(text, INSERT_EXTRACT);
+    ) + "\n[[region]]\nname = 'far, \"deep\" half'\n\
+         geometry = { kind = \"box\", min = [0.03, 0.0, 0.0], max = [0.1, 0.1, 0.1] }\n\
+         material = { stiffness = 20.0 }\n";
+    assert!(text.contains("puncture_force"));
     let scene = Scene::from_toml_str(&text, Path::new("scenes")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut opts = RunOptions::new(dir.path());
     opts.threads = Some(1);
     run_scene(&scene, &opts, |_, _| {}).unwrap();
-    let text = std::fs::read_to_string(dir.path().join("needle_force.csv")).unwrap();
+    let table = read_needle_csv(&dir.path().join("needle_force.csv")).unwrap();
     // Its plots are drawn by the command line tool (crates/cli/tests/cli.rs).
+    assert!(
+        table.iter().any(|r| r.region == "far, \"deep\" half"),
+        "the quoted region name does not come back whole"
+    );
     struct Row {
         time: f64,
         depth: f64,
         axial: f64,
         state: String,
     }
-    let rows: Vec<Row> = text
-        .lines()
-        .skip(1)
-        .map(|l| {
-            let c: Vec<&str> = l.split(',').collect();
-            assert!(c[..5].iter().all(|v| v.parse::<f64>().unwrap().is_finite()));
+    let rows: Vec<Row> = table
+        .into_iter()
+        .map(|r| {
+            assert!([r.time_s, r.depth_m, r.axial_force_n, r.lateral_force_n]
+                .iter()
+                .all(|v| v.is_finite()));
             Row {
-                time: c[1].parse().unwrap(),
-                depth: c[2].parse().unwrap(),
-                axial: c[3].parse().unwrap(),
-                state: c[5].to_string(),
+                time: r.time_s,
+                depth: r.depth_m,
+                axial: r.axial_force_n,
+                state: r.state,
             }
         })
         .collect();

@@ -34,8 +34,8 @@ enum Command {
         /// Steps to run (overrides the scene's run.steps or run.duration).
         #[arg(long)]
         steps: Option<u64>,
-        /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
-        #[arg(long, value_parser = parse_backend)]
+        /// Backend, overriding the scene's.
+        #[arg(long, value_parser = backend_parser())]
         backend: Option<BackendChoice>,
         /// CPU threads: 1 for the single-threaded backend, 0 for all threads (overrides
         /// --backend).
@@ -69,7 +69,7 @@ enum Command {
         realism: bool,
         /// Backends to time every case on, comma separated [default: cpu,cpu-parallel and
         /// gpu when an adapter is found].
-        #[arg(long, value_delimiter = ',', value_parser = parse_backend)]
+        #[arg(long, value_delimiter = ',', value_parser = backend_parser())]
         backends: Vec<BackendChoice>,
     },
     /// Show a scene: a window that steps it in real time (keys: Space pause, N step,
@@ -123,8 +123,8 @@ struct ViewArgs {
     /// window].
     #[arg(long)]
     height: Option<u32>,
-    /// Backend, overriding the scene's: cpu, cpu-parallel, gpu or auto.
-    #[arg(long, value_parser = parse_backend)]
+    /// Backend, overriding the scene's.
+    #[arg(long, value_parser = backend_parser())]
     backend: Option<BackendChoice>,
     /// CPU threads: 1 for the single-threaded backend, 0 for all threads (overrides
     /// --backend).
@@ -135,16 +135,35 @@ struct ViewArgs {
     frames: Option<u64>,
 }
 
-fn parse_backend(s: &str) -> Result<BackendChoice, String> {
-    match s {
-        "cpu" => Ok(BackendChoice::Cpu),
-        "cpu-parallel" => Ok(BackendChoice::CpuParallel),
-        "gpu" => Ok(BackendChoice::Gpu),
-        "auto" => Ok(BackendChoice::Auto),
-        _ => Err(format!(
-            "unknown backend `{s}` (expected cpu, cpu-parallel, gpu or auto)"
-        )),
+/// The `--backend` values, parsed by clap (its help lists them, its errors suggest the
+/// nearest); the scene's [`BackendChoice`] itself stays free of the CLI's dependencies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum BackendArg {
+    /// One CPU thread.
+    Cpu,
+    /// All CPU threads.
+    CpuParallel,
+    /// The wgpu compute backend; an error if no GPU adapter is found.
+    Gpu,
+    /// The GPU when an adapter is found, else all CPU threads.
+    Auto,
+}
+
+impl From<BackendArg> for BackendChoice {
+    fn from(b: BackendArg) -> BackendChoice {
+        match b {
+            BackendArg::Cpu => BackendChoice::Cpu,
+            BackendArg::CpuParallel => BackendChoice::CpuParallel,
+            BackendArg::Gpu => BackendChoice::Gpu,
+            BackendArg::Auto => BackendChoice::Auto,
+        }
     }
+}
+
+/// clap's parser of [`BackendArg`], giving a [`BackendChoice`].
+fn backend_parser() -> impl clap::builder::TypedValueParser<Value = BackendChoice> {
+    use clap::builder::TypedValueParser as _;
+    clap::builder::EnumValueParser::<BackendArg>::new().map(BackendChoice::from)
 }
 
 fn load(scene: &Option<PathBuf>) -> Result<(Scene, String)> {
@@ -596,51 +615,70 @@ fn sweep(
     // (or killed) keeps every variant that finished; a second signal ends the process at
     // once.
     let stop = stop_on_signals()?;
-    let mut f = std::io::BufWriter::new(
+    // The csv crate quotes what needs it (RFC 4180): values and error messages with
+    // commas, quotes or line breaks come back whole.
+    let mut f = csv::WriterBuilder::new().has_headers(false).from_writer(
         std::fs::File::create(&out).with_context(|| format!("creating {}", out.display()))?,
     );
-    let keys: Vec<&str> = vary.iter().map(|(k, _)| k.as_str()).collect();
-    writeln!(
-        f,
-        "variant,{},step,time_s,depth_m,axial_force_n,lateral_force_n,state,error",
-        keys.join(",")
-    )?;
+    let mut header = vec!["variant".to_string()];
+    header.extend(vary.iter().map(|(k, _)| k.clone()));
+    header.extend(
+        [
+            "step",
+            "time_s",
+            "depth_m",
+            "axial_force_n",
+            "lateral_force_n",
+            "state",
+            "error",
+        ]
+        .map(String::from),
+    );
+    f.write_record(&header)?;
     f.flush()?;
     let t0 = std::time::Instant::now();
     let (mut failed, mut finished, mut interrupted) = (0, 0, 0);
-    let mut write_error: Option<std::io::Error> = None;
+    let mut write_error: Option<csv::Error> = None;
     let mut write =
-        |i: usize, r: Result<sweep::VariantRun, sweep::SweepError>| -> std::io::Result<()> {
-            let values: Vec<String> = variants[i]
-                .iter()
-                .map(|(_, x)| x.to_string().replace(',', ";"))
-                .collect();
-            let values = values.join(",");
+        |i: usize, r: Result<sweep::VariantRun, sweep::SweepError>| -> csv::Result<()> {
+            // Each value as its TOML literal (a string keeps its quotes), as --vary gave it.
+            let values: Vec<String> = variants[i].iter().map(|(_, x)| x.to_string()).collect();
+            let mut record = |tail: [String; 7]| {
+                let mut row = vec![i.to_string()];
+                row.extend(values.iter().cloned());
+                row.extend(tail);
+                f.write_record(&row)
+            };
             match r {
                 Ok(run) => {
                     finished += 1;
                     for (s, depth) in run.samples.iter().zip(&run.depths) {
-                        writeln!(
-                            f,
-                            "{i},{values},{},{},{},{},{},{},",
-                            s.step,
-                            s.time,
-                            depth,
-                            s.force.axial,
-                            s.force.lateral,
-                            format!("{:?}", s.state).to_lowercase()
-                        )?;
+                        record([
+                            s.step.to_string(),
+                            s.time.to_string(),
+                            depth.to_string(),
+                            s.force.axial.to_string(),
+                            s.force.lateral.to_string(),
+                            format!("{:?}", s.state).to_lowercase(),
+                            String::new(),
+                        ])?;
                     }
                 }
                 Err(sweep::SweepError::Interrupted) => interrupted += 1,
                 Err(e) => {
                     failed += 1;
-                    let msg = e.to_string().replace(['\n', '"'], " ");
-                    writeln!(f, "{i},{values},,,,,,,\"{msg}\"")?;
-                    eprintln!("variant {i} ({values}) failed: {msg}");
+                    let msg = e.to_string();
+                    record(std::array::from_fn(|k| {
+                        if k == 6 {
+                            msg.clone()
+                        } else {
+                            String::new()
+                        }
+                    }))?;
+                    eprintln!("variant {i} ({}) failed: {msg}", values.join(", "));
                 }
             }
-            f.flush()
+            f.flush().map_err(csv::Error::from)
         };
     sweep::sweep_each(
         &text.toml,

@@ -201,7 +201,12 @@ fn backend_option_selects_the_gpu_or_falls_back() {
         .output()
         .unwrap();
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown backend `banana`"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("invalid value 'banana'"), "{err}");
+    assert!(
+        err.contains("cpu-parallel"),
+        "the error lists the backends: {err}"
+    );
 }
 
 /// `needlesim view --screenshot` renders offscreen (lavapipe under scripts/test) and
@@ -444,13 +449,14 @@ fn sweep_matches_runs_alone_and_reports_failures() {
     let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(o.status.success(), "{stderr}");
     assert!(stderr.contains("variant 2 (-2) failed"), "{stderr}");
-    let text = std::fs::read_to_string(&csv).unwrap();
-    let rows: Vec<Vec<&str>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').collect())
+    // Read with a CSV reader: the error message is one quoted field, whatever it holds.
+    let rows: Vec<csv::StringRecord> = csv::Reader::from_path(&csv)
+        .unwrap()
+        .records()
+        .map(Result::unwrap)
         .collect();
-    let failed: Vec<_> = rows.iter().filter(|r| r[0] == "2").collect();
+    assert!(rows.iter().all(|r| r.len() == 9), "ragged rows");
+    let failed: Vec<_> = rows.iter().filter(|r| &r[0] == "2").collect();
     assert_eq!(failed.len(), 1);
     assert!(failed[0][8].contains("coefficient"), "{:?}", failed[0]);
     let base = std::fs::read_to_string(&scene).unwrap();
@@ -470,7 +476,7 @@ fn sweep_matches_runs_alone_and_reports_failures() {
         let axial: Vec<f64> = sim.history().iter().map(|h| h.force.axial).collect();
         let swept: Vec<f64> = rows
             .iter()
-            .filter(|r| r[0] == variant)
+            .filter(|r| &r[0] == variant)
             .map(|r| r[5].parse().unwrap())
             .collect();
         assert_eq!(swept.len(), 2000);

@@ -107,12 +107,12 @@ pub fn validate(scene: &Scene) -> Result<(), SceneError> {
     }
     let mut seen = vec![BASE_REGION.to_string()];
     for (i, r) in scene.region.iter().enumerate() {
-        if r.name.trim().is_empty() || r.name.contains([',', '"', '\n', '[', ']']) {
+        // Commas and quotes are fine: the CSV files quote them (RFC 4180).
+        if r.name.trim().is_empty() || r.name.contains(['\n', '\r', '[', ']']) {
             return Err(SceneError::invalid(
                 format!("region[{i}].name"),
                 format!(
-                    "must be a non-empty name without commas, quotes, brackets or newlines, \
-                     got {:?}",
+                    "must be a non-empty name without brackets or line breaks, got {:?}",
                     r.name
                 ),
             ));

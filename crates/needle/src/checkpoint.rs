@@ -11,8 +11,8 @@
 //! surface triangles and their grid, the clock and the history.
 //!
 //! File layout: the magic `NEEDLESIM-CHECKPOINT\n`, the format version (u32, little
-//! endian), the payload length (u64), the payload's FNV-1a 64-bit hash (u64), then the
-//! payload in the postcard encoding. Another version, another magic, a short or altered file
+//! endian), the payload length (u64), the payload's CRC-32 (IEEE, `crc32fast`; u32), then
+//! the payload in the postcard encoding. Another version, another magic, a short or altered file
 //! are typed errors ([`CheckpointError`]).
 //!
 //! A checkpoint does not rebuild a tissue: it is restored onto one prepared from the same
@@ -34,7 +34,7 @@ use thiserror::Error;
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
 /// Format version this build writes and reads. Raised whenever the payload changes.
 pub const FORMAT_VERSION: u32 = 5;
-const HEADER: usize = MAGIC.len() + 4 + 8 + 8;
+const HEADER: usize = MAGIC.len() + 4 + 8 + 4;
 
 /// Why a checkpoint cannot be written, read or restored.
 #[derive(Debug, Error)]
@@ -164,7 +164,7 @@ pub struct Checkpoint {
     /// The scene, if the writer attached it (a checkpoint restores onto a tissue prepared
     /// from the same scene; with it, the file alone is enough).
     pub scene: Option<SceneText>,
-    pub(crate) fingerprint: Vec<(String, u64)>,
+    pub(crate) fingerprint: Vec<(String, u32)>,
     pub(crate) backend: BackendSnapshot,
     pub(crate) editor: EditorSnapshot,
     pub(crate) sim: SimSnapshot,
@@ -188,7 +188,7 @@ impl Checkpoint {
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
         out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-        out.extend_from_slice(&fnv1a(&payload).to_le_bytes());
+        out.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
         out.extend_from_slice(&payload);
         out
     }
@@ -247,7 +247,7 @@ impl Checkpoint {
             });
         }
         let len = word(MAGIC.len() + 4, 8);
-        let hash = word(MAGIC.len() + 12, 8);
+        let crc = word(MAGIC.len() + 12, 4) as u32;
         let expected = (HEADER as u64).saturating_add(len);
         if (bytes.len() as u64) < expected {
             return Err(CheckpointError::Truncated {
@@ -263,10 +263,10 @@ impl Checkpoint {
             });
         }
         let payload = &bytes[HEADER..];
-        if fnv1a(payload) != hash {
+        if crc32fast::hash(payload) != crc {
             return Err(CheckpointError::Corrupt {
                 path,
-                reason: "the payload does not match its hash".into(),
+                reason: "the payload does not match its CRC-32".into(),
             });
         }
         let c: Checkpoint =
@@ -328,17 +328,11 @@ impl Checkpoint {
     }
 }
 
-/// FNV-1a, 64 bits: a stable hash (std's hashers may change between Rust releases).
-pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-/// The scene parts that shape a simulation's state, each hashed: a checkpoint restores only
-/// onto a tissue prepared from a scene with the same parts. `nodes` hashes the built node
+/// The scene parts that shape a simulation's state, each hashed (CRC-32: stable across
+/// Rust releases, unlike std's hashers): a checkpoint restores only onto a tissue prepared
+/// from a scene with the same parts. `nodes` hashes the built node
 /// positions and inverse masses, so that a changed surface file is caught too.
-pub(crate) fn fingerprint(scene: &Scene, positions: &[Vec4]) -> Vec<(String, u64)> {
+pub(crate) fn fingerprint(scene: &Scene, positions: &[Vec4]) -> Vec<(String, u32)> {
     // Debug output of floats is exact (shortest round-trip form), so equal text is equal
     // values.
     let parts: [(&str, String); 8] = [
@@ -351,10 +345,13 @@ pub(crate) fn fingerprint(scene: &Scene, positions: &[Vec4]) -> Vec<(String, u64
         ("initial", format!("{:?}", scene.initial)),
         ("needle", format!("{:?}", scene.needle)),
     ];
-    let mut out: Vec<(String, u64)> = parts
+    let mut out: Vec<(String, u32)> = parts
         .into_iter()
-        .map(|(k, v)| (k.to_string(), fnv1a(v.as_bytes())))
+        .map(|(k, v)| (k.to_string(), crc32fast::hash(v.as_bytes())))
         .collect();
-    out.push(("nodes".to_string(), fnv1a(bytemuck::cast_slice(positions))));
+    out.push((
+        "nodes".to_string(),
+        crc32fast::hash(bytemuck::cast_slice(positions)),
+    ));
     out
 }

@@ -128,7 +128,7 @@ pub struct Simulation {
     /// Rest positions of the mesh nodes, m.
     rest: Vec<[f64; 3]>,
     state: NeedleState,
-    fingerprint: Vec<(String, u64)>,
+    fingerprint: Vec<(String, u32)>,
     /// Region of every mesh node.
     node_region: Vec<u16>,
     region_names: Vec<String>,

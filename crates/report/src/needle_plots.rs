@@ -7,7 +7,7 @@
 //! step then).
 
 use crate::plot::{line_plot, Labels, Series};
-use needlesim::needle_output::NEEDLE_CSV_HEADER;
+use needlesim::needle_output::parse_needle_csv;
 use std::path::{Path, PathBuf};
 
 /// The force plot files, by name, in a run's output folder (the third only when the
@@ -19,34 +19,26 @@ pub const NEEDLE_PLOT_FILES: [&str; 3] = [
 ];
 
 /// The rows of `needle_force.csv`: time (s), depth (m), axial and lateral force (N), the
-/// tissue depth (m, NaN where the CSV has none), and the row indices where the tip entered a new region (a puncture: the region column
-/// changes to another non-empty name).
+/// tissue depth (m, NaN where the CSV has none), and the row indices where the tip entered
+/// a new region (a puncture: the region column changes to another non-empty name).
 fn parse(text: &str) -> Result<(Vec<[f64; 5]>, Vec<usize>), String> {
-    let mut lines = text.lines();
-    if lines.next() != Some(NEEDLE_CSV_HEADER) {
-        return Err("not a needle_force.csv (unexpected header)".into());
-    }
+    let table = parse_needle_csv(text.as_bytes(), "needle_force.csv")?;
     let mut rows = Vec::new();
     let mut punctures = Vec::new();
     let mut region = String::new();
-    for (k, line) in lines.enumerate() {
-        let c: Vec<&str> = line.split(',').collect();
-        let v = |i: usize| -> Result<f64, String> {
-            c.get(i)
-                .and_then(|s| s.parse().ok())
-                .ok_or_else(|| format!("line {}: column {} is not a number", k + 2, i + 1))
-        };
-        let tissue = match c.get(9).copied().unwrap_or("") {
-            "" => f64::NAN,
-            _ => v(9)?,
-        };
-        rows.push([v(1)?, v(2)?, v(3)?, v(4)?, tissue]);
-        let r = c.get(8).copied().unwrap_or("");
-        if !r.is_empty() && r != region {
+    for (k, r) in table.into_iter().enumerate() {
+        rows.push([
+            r.time_s,
+            r.depth_m,
+            r.axial_force_n,
+            r.lateral_force_n,
+            r.tissue_depth_m.unwrap_or(f64::NAN),
+        ]);
+        if !r.region.is_empty() && r.region != region {
             punctures.push(k);
         }
-        if !r.is_empty() || c.get(5) == Some(&"outside") {
-            region = r.to_string();
+        if !r.region.is_empty() || r.state == "outside" {
+            region = r.region;
         }
     }
     Ok((rows, punctures))
@@ -135,6 +127,21 @@ pub fn needle_plots(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use needlesim::needle_output::NEEDLE_CSV_HEADER;
+
+    /// A region name with a comma and quotes is one quoted field (RFC 4180).
+    #[test]
+    fn a_quoted_region_name_is_one_column() {
+        let csv = format!(
+            "{NEEDLE_CSV_HEADER}\n0,0,0,1,0,inside,3,4,\"skin, \"\"outer\"\"\",,0,0\n\
+             1,1e-3,1e-5,1,0,inside,3,4,fat,1e-5,0,0\n"
+        );
+        let (rows, punctures) = parse(&csv).unwrap();
+        assert_eq!((rows.len(), punctures), (2, vec![0, 1]));
+        let table = parse_needle_csv(csv.as_bytes(), "x").unwrap();
+        assert_eq!(table[0].region, "skin, \"outer\"");
+        assert_eq!(table[0].tissue_depth_m, None);
+    }
 
     #[test]
     fn draws_the_plots_from_the_csv() {

@@ -24,7 +24,7 @@ pub struct Prepared {
     regions: Vec<RegionParams>,
     rest: Vec<[f64; 3]>,
     physics: Physics,
-    fingerprint: Vec<(String, u64)>,
+    fingerprint: Vec<(String, u32)>,
 }
 
 impl Prepared {
