@@ -596,7 +596,6 @@ fn sweep(
     out: Option<PathBuf>,
 ) -> Result<()> {
     use needlesim::sweep;
-    use std::io::Write;
     let (scene, stem, text) = load_with_text(&scene_path)?;
     let vary = sweep::parse_vary_all(vary)?;
     let variants = sweep::grid(&vary);

@@ -8,7 +8,7 @@
 
 use needlesim::core::scene::BackendChoice;
 use needlesim::needle::{Checkpoint, PunctureState, SceneText, Simulation, SimulationError};
-use needlesim::{make_backend, NodeField, RunError, Scene, Tissue};
+use needlesim::{make_backend, NodeField, RunError, Scene};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -136,6 +136,8 @@ struct PySimulation {
     busy: Arc<AtomicBool>,
     warnings: Vec<String>,
     masses: Vec<f64>,
+    /// The mesh's neighbour rows as the scene built them (index, weight; mesh nodes x K).
+    built_neighbours: (Vec<u32>, Vec<f32>, usize),
     /// The scene as TOML (checkpoints carry it).
     scene: SceneText,
     /// Steps the scene's `[run]` asks for at the simulation's time step.
@@ -155,6 +157,9 @@ impl PySimulation {
         let (b, warning) =
             make_backend(&parsed, prep.tissue.clone(), choice, threads).map_err(run_error)?;
         let masses = prep.tissue.masses.clone();
+        let nb = &prep.tissue.neighbours;
+        let rows = prep.tissue.n_mesh * nb.k;
+        let built_neighbours = (nb.index[..rows].to_vec(), nb.weight[..rows].to_vec(), nb.k);
         let sim = match checkpoint {
             Some(c) => prep.resume(b, c),
             None => prep.start(b),
@@ -166,6 +171,7 @@ impl PySimulation {
             busy: Arc::default(),
             warnings: warning.into_iter().collect(),
             masses,
+            built_neighbours,
             scene,
             run_steps,
         })
@@ -197,6 +203,52 @@ impl PySimulation {
             .flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
             .collect();
         rows(py, flat, 3)
+    }
+
+    /// The surface's nodes (in the order of first use by its triangles), their positions
+    /// (flat, 3 per node) and the triangles as indices into that list (flat).
+    fn surface_arrays(&self, py: Python<'_>) -> PyResult<(Vec<usize>, Vec<f64>, Vec<i64>)> {
+        let pos = self.field(py, NodeField::Position)?;
+        let pos = pos.readonly();
+        let pos = pos.as_array();
+        let tris = self.lock().triangles().to_vec();
+        let mut map = std::collections::HashMap::new();
+        let (mut nodes, mut verts) = (Vec::new(), Vec::new());
+        let mut faces = Vec::with_capacity(tris.len() * 3);
+        for t in &tris {
+            for &v in t {
+                let id = *map.entry(v).or_insert_with(|| {
+                    let r = pos.row(v as usize);
+                    verts.extend([r[0], r[1], r[2]]);
+                    nodes.push(v as usize);
+                    nodes.len() - 1
+                });
+                faces.push(id as i64);
+            }
+        }
+        Ok((nodes, verts, faces))
+    }
+}
+
+/// `needlesim._types.<name>(args)`: the typed results are Python classes (an enum, records
+/// with numpy fields) built from what the native code hands out.
+fn typed<'py>(
+    py: Python<'py>,
+    name: &str,
+    args: impl pyo3::call::PyCallArgs<'py>,
+) -> PyResult<Bound<'py, PyAny>> {
+    py.import("needlesim._types")?.getattr(name)?.call1(args)
+}
+
+/// The node field named `name` in `Simulation.read`.
+fn field_named(name: &str) -> PyResult<NodeField> {
+    match name {
+        "positions" => Ok(NodeField::Position),
+        "velocities" => Ok(NodeField::Velocity),
+        "forces" => Ok(NodeField::Force),
+        _ => Err(value_error(format!(
+            "fields: unknown field {name:?} (positions, velocities or forces)"
+        ))),
     }
 }
 
@@ -375,24 +427,26 @@ impl PySimulation {
     /// The surface as its own mesh: (vertices (m, 3) float64, faces (t, 3) int64 into
     /// the vertices).
     fn surface<'py>(&self, py: Python<'py>) -> PyResult<Mesh<'py>> {
-        let pos = self.field(py, NodeField::Position)?;
-        let pos = pos.readonly();
-        let pos = pos.as_array();
-        let tris = self.lock().triangles().to_vec();
-        let mut map = std::collections::HashMap::new();
-        let mut verts = Vec::new();
-        let mut faces = Vec::with_capacity(tris.len() * 3);
-        for t in &tris {
-            for &v in t {
-                let id = *map.entry(v).or_insert_with(|| {
-                    let r = pos.row(v as usize);
-                    verts.extend([r[0], r[1], r[2]]);
-                    verts.len() / 3 - 1
-                });
-                faces.push(id as i64);
-            }
-        }
+        let (_, verts, faces) = self.surface_arrays(py)?;
         Ok((rows(py, verts, 3)?, rows(py, faces, 3)?))
+    }
+
+    /// The surface as a `pyvista.PolyData` (`pip install needlesim[pyvista]`; ImportError
+    /// without PyVista), with the point array "displacement" (m from rest): plot it with
+    /// `mesh.plot(scalars="displacement")` or save it with `mesh.save("frame.vtp")`.
+    fn surface_mesh<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (nodes, verts, faces) = self.surface_arrays(py)?;
+        let rest = self.lock().rest_positions();
+        let disp: Vec<f64> = nodes
+            .iter()
+            .zip(verts.chunks(3))
+            .flat_map(|(&i, v)| {
+                let r = rest[i];
+                [v[0] - r[0], v[1] - r[1], v[2] - r[2]]
+            })
+            .collect();
+        let args = (rows(py, verts, 3)?, rows(py, faces, 3)?, rows(py, disp, 3)?);
+        typed(py, "_surface_mesh", args)
     }
 
     /// Renders the simulation as it is now (the tissue surface lit, the needle, its
@@ -453,10 +507,12 @@ impl PySimulation {
         d.map(|t| PyArray1::from_vec(py, t.to_vec()))
     }
 
-    /// "outside", "touching" or "inside".
+    /// `needlesim.PunctureState`: OUTSIDE, TOUCHING or INSIDE (a str enum, equal to
+    /// "outside", "touching" or "inside").
     #[getter]
-    fn puncture_state(&self) -> &'static str {
-        state_name(self.lock().state())
+    fn puncture_state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let name = state_name(self.lock().state());
+        typed(py, "_puncture_state", (name,))
     }
 
     /// The tissue region the tip is in (a `[[region]]` name, or "tissue" for the nodes in
@@ -474,12 +530,13 @@ impl PySimulation {
         self.lock().region_names().to_vec()
     }
 
-    /// Force of the tissue on the needle in the last step: {"axial": N (positive resists
-    /// insertion), "lateral": N, "total": array (3,), "tip": N (the part of the axial
-    /// force the tip's elements carry; the rest is the shaft's friction), "torque": N m
-    /// (the friction's torque about the needle's axis)}.
+    /// Force of the tissue on the needle in the last step, a `needlesim.NeedleForce`:
+    /// axial (N, positive resists insertion), lateral (N), total (array (3,)), tip (N, the
+    /// part of the axial force the tip's elements carry; the rest is the shaft's
+    /// friction), torque (N m, the friction's torque about the needle's axis). Also a
+    /// read-only mapping (`force["axial"]`).
     #[getter]
-    fn needle_force<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn needle_force<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let f = self.lock().needle_force();
         let d = PyDict::new(py);
         d.set_item("axial", f.axial)?;
@@ -487,7 +544,7 @@ impl PySimulation {
         d.set_item("total", PyArray1::from_vec(py, f.total.to_vec()))?;
         d.set_item("tip", f.tip)?;
         d.set_item("torque", f.torque)?;
-        Ok(d)
+        typed(py, "_needle_force", (d,))
     }
 
     /// The force each held set (`[[fixed]]`, `[[prescribed]]`) exerts on the body, from the
@@ -509,30 +566,96 @@ impl PySimulation {
         PyArray1::from_vec(py, self.masses.clone())
     }
 
-    /// The mesh's neighbour lists as the scene builds them: `(index, weight)`, both of
-    /// shape (mesh_nodes, K); index is int64, weight float32 and 0 marks an empty or broken
-    /// slot (the mutuality rule). Rebuilt from the scene on each call, so the rows the
-    /// needle edits during a run and the nodes it adds are not included.
-    fn neighbours<'py>(&self, py: Python<'py>) -> PyResult<NeighbourRows<'py>> {
-        let parsed = self.scene.scene().map_err(value_error)?;
-        let tissue = Tissue::from_scene(&parsed).map_err(value_error)?;
-        let (n, k) = (tissue.n_mesh, tissue.neighbours.k);
-        let index = tissue.neighbours.index[..n * k]
-            .iter()
-            .map(|&j| j as i64)
-            .collect();
-        let weight = tissue.neighbours.weight[..n * k].to_vec();
+    /// Neighbour lists `(index, weight)`, both of shape (nodes, K); index is int64,
+    /// weight float32 and 0 marks an empty or broken slot (the mutuality rule). By
+    /// default the mesh's rows as the scene built them (kept from the build, not rebuilt);
+    /// `current=True`: the rows the simulation uses now, for every active node, with the
+    /// needle's edits and the nodes it added.
+    #[pyo3(signature = (current=false))]
+    fn neighbours<'py>(&self, py: Python<'py>, current: bool) -> PyResult<NeighbourRows<'py>> {
+        let (index, weight, k) = if current {
+            let sim = self.lock();
+            let nb = sim.editor().neighbours();
+            let rows = sim.editor().n_active() * nb.k;
+            (nb.index[..rows].to_vec(), nb.weight[..rows].to_vec(), nb.k)
+        } else {
+            self.built_neighbours.clone()
+        };
+        let index = index.iter().map(|&j| j as i64).collect();
         Ok((rows(py, index, k)?, rows(py, weight, k)?))
     }
 
-    /// Every step's needle record as numpy arrays: step, time, depth (m past the first
-    /// contact), axial, lateral, tip (N), torque (N m), active_nodes, needle_nodes, and state and region
-    /// (lists of str; region is the tissue region the tip is in, "" when not inside), and
-    /// tissue_depth (m: the tip's depth in the undeformed tissue, NaN, numpy's missing
-    /// value, while the tip is not in contact).
+    /// Several node arrays in one read (one device round trip on the GPU, where each
+    /// property is one): `fields` from "positions", "velocities", "forces", for the
+    /// active nodes or the listed `nodes` (in their order); a tuple of float64 arrays
+    /// (n, 3).
+    #[pyo3(signature = (fields=vec!["positions".to_string(), "velocities".to_string(), "forces".to_string()], nodes=None))]
+    fn read<'py>(
+        &self,
+        py: Python<'py>,
+        fields: Vec<String>,
+        nodes: Option<Vec<i64>>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let kinds = fields
+            .iter()
+            .map(|f| field_named(f))
+            .collect::<PyResult<Vec<_>>>()?;
+        let mut sim = self.lock();
+        let b = sim.backend();
+        let n_active = b.n_active();
+        let list: Option<Vec<u32>> = match nodes {
+            None => None,
+            Some(v) => Some(
+                v.iter()
+                    .map(|&i| {
+                        u32::try_from(i)
+                            .ok()
+                            .filter(|&i| (i as usize) < n_active)
+                            .ok_or_else(|| {
+                                value_error(format!(
+                                    "nodes: index {i} outside the {n_active} active nodes"
+                                ))
+                            })
+                    })
+                    .collect::<PyResult<_>>()?,
+            ),
+        };
+        let count = list.as_ref().map_or(n_active, |l| l.len());
+        let selection = match &list {
+            Some(l) => needlesim::core::NodeSelection::List(l),
+            None => needlesim::core::NodeSelection::Range(0..n_active),
+        };
+        let requests: Vec<_> = kinds.iter().map(|&k| (k, selection.clone())).collect();
+        let mut bufs = vec![vec![[0.0f32; 4]; count]; kinds.len()];
+        {
+            let mut outs: Vec<&mut [[f32; 4]]> =
+                bufs.iter_mut().map(|b| b.as_mut_slice()).collect();
+            b.read_many(&requests, &mut outs).map_err(runtime_error)?;
+        }
+        drop(sim);
+        let arrays = bufs
+            .into_iter()
+            .map(|buf| {
+                let flat: Vec<f64> = buf
+                    .iter()
+                    .flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+                    .collect();
+                rows(py, flat, 3)
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        PyTuple::new(py, arrays)
+    }
+
+    /// Every step's needle record, a `needlesim.NeedleHistory` of numpy arrays: step,
+    /// time, depth (m past the first contact), axial, lateral, tip (N), torque (N m),
+    /// active_nodes, needle_nodes, state (a list of `PunctureState`), region (a list of
+    /// str: the tissue region the tip is in, "" when not inside), and tissue_depth (m: the
+    /// tip's depth in the undeformed tissue, NaN, numpy's missing value, while the tip is
+    /// not in contact). Also a read-only mapping of those columns (`h["axial"]`), and
+    /// `h.to_pandas()` gives a DataFrame.
     /// `clear=True` also empties the record (stream a long run to disk chunk by chunk).
     #[pyo3(signature = (clear=false))]
-    fn history<'py>(&self, py: Python<'py>, clear: bool) -> PyResult<Bound<'py, PyDict>> {
+    fn history<'py>(&self, py: Python<'py>, clear: bool) -> PyResult<Bound<'py, PyAny>> {
         let mut sim = self.lock();
         let taken;
         let h = if clear {
@@ -585,7 +708,8 @@ impl PySimulation {
             "tissue_depth",
             PyArray1::from_vec(py, col(&|s| s.tissue_depth.unwrap_or(f64::NAN))),
         )?;
-        Ok(d)
+        drop(sim);
+        typed(py, "_needle_history", (d,))
     }
 
     /// Nodes simulated now (mesh nodes plus needle nodes).

@@ -20,12 +20,19 @@ Many runs (needlesim.sweep, needlesim.fit) go through Dask when it is installed
     ...                     [(5e3, 5e4)])
 
 Arrays are float64 (int64 for indices) copies of the simulation state, shaped
-(n, 3); they do not change when the simulation steps on.
+(n, 3); they do not change when the simulation steps on. Each property is one read
+(on the GPU one device round trip): ``sim.read(["positions", "forces"])`` reads several
+at once. Results are typed: ``sim.puncture_state`` is a ``PunctureState`` (a str enum),
+``sim.needle_force`` a ``NeedleForce`` and ``sim.history()`` a ``NeedleHistory``
+(records with attributes that read like the dicts they replace: ``h["axial"]``,
+``h.to_pandas()``); ``sim.surface_mesh()`` is a ``pyvista.PolyData`` with PyVista
+installed (``pip install needlesim[pyvista]``).
 """
 
 from ._needlesim import HapticLoop, SineDevice, Simulation, adapter, models, __version__
 from ._fit import FitError, FitResult, fit
 from ._prony import PronyFit, fit_prony, relaxation
+from ._types import NeedleForce, NeedleHistory, PunctureState
 from ._sweep import (
     OverrideError,
     SerialSweepWarning,
@@ -40,8 +47,11 @@ __all__ = [
     "FitError",
     "FitResult",
     "HapticLoop",
+    "NeedleForce",
+    "NeedleHistory",
     "OverrideError",
     "PronyFit",
+    "PunctureState",
     "SerialSweepWarning",
     "SineDevice",
     "Simulation",

@@ -1,16 +1,20 @@
 """Type stubs of the native module (see needlesim.Simulation)."""
 
 from os import PathLike
-from typing import Any, Dict, List, Literal, Optional, Tuple, Union
+from typing import Any, Dict, List, Literal, Optional, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
+from ._types import NeedleForce, NeedleHistory, PunctureState
+
+__all__ = ["Simulation", "HapticLoop", "SineDevice", "adapter", "models", "__version__"]
+
 __version__: str
 
-PunctureState = Literal["outside", "touching", "inside"]
-Backend = Literal["cpu", "cpu-parallel", "gpu", "auto"]
+_BackendName = Literal["cpu", "cpu-parallel", "gpu", "auto"]
 
+@final
 class Simulation:
     """A needle insertion simulation (or a plain tissue simulation when the scene has no
     [needle] table) on the CPU or the GPU."""
@@ -18,14 +22,14 @@ class Simulation:
     @staticmethod
     def from_scene(
         path: Union[str, PathLike[str]],
-        backend: Optional[Backend] = None,
+        backend: Optional[_BackendName] = None,
         threads: Optional[int] = None,
     ) -> "Simulation":
         """Builds the scene in a TOML file. Raises ValueError naming the bad key."""
     @staticmethod
     def from_dict(
         scene: Dict[str, Any],
-        backend: Optional[Backend] = None,
+        backend: Optional[_BackendName] = None,
         threads: Optional[int] = None,
         base_dir: Optional[Union[str, PathLike[str]]] = None,
     ) -> "Simulation":
@@ -35,7 +39,7 @@ class Simulation:
     @staticmethod
     def load(
         path: Union[str, PathLike[str]],
-        backend: Optional[Backend] = None,
+        backend: Optional[_BackendName] = None,
         threads: Optional[int] = None,
     ) -> "Simulation":
         """The simulation save() wrote; continues bitwise on the CPU backends. ValueError
@@ -64,6 +68,16 @@ class Simulation:
         """(triangles, 3) surface triangles as indices into positions."""
     def surface(self) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64]]:
         """The surface as (vertices (m, 3), faces (t, 3) into vertices)."""
+    def surface_mesh(self) -> Any:
+        """The surface as a pyvista.PolyData with point data "displacement" (m); ImportError
+        without PyVista (pip install needlesim[pyvista])."""
+    def read(
+        self,
+        fields: List[Literal["positions", "velocities", "forces"]] = ...,
+        nodes: Optional[List[int]] = None,
+    ) -> Tuple[npt.NDArray[np.float64], ...]:
+        """Several (n, 3) arrays in one read (one device round trip on the GPU), for the
+        active nodes or the listed ones; default all three fields."""
     def screenshot(self, path: Union[str, PathLike[str]], width: int = 800, height: int = 600) -> None:
         """Renders the simulation now to a PNG (offscreen; RuntimeError without a Vulkan driver)."""
     def set_pose(self, base: Tuple[float, float, float], direction: Tuple[float, float, float], roll: Optional[float] = None) -> None:
@@ -81,7 +95,8 @@ class Simulation:
     def direction(self) -> Optional[npt.NDArray[np.float64]]:
         """Unit needle direction base -> tip (3,), None without a needle."""
     @property
-    def puncture_state(self) -> PunctureState: ...
+    def puncture_state(self) -> PunctureState:
+        """OUTSIDE, TOUCHING or INSIDE (a str enum, equal to "outside", ...)."""
     @property
     def tip_region(self) -> Optional[str]:
         """The tissue region the tip is in (a [[region]] name, or "tissue" for the nodes in
@@ -92,20 +107,23 @@ class Simulation:
     @property
     def masses(self) -> npt.NDArray[np.float64]:
         """(mesh_nodes,) node masses in kg (density times cell volume by default)."""
-    def neighbours(self) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32]]:
-        """(index, weight), both (mesh_nodes, K): the mesh's neighbour lists as the scene
-        builds them (weight 0 marks an empty or broken slot; needle edits not included)."""
+    def neighbours(self, current: bool = False) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32]]:
+        """(index, weight), both (nodes, K), weight 0 marking an empty or broken slot: the
+        mesh's rows as the scene built them (kept, not rebuilt), or with current=True the
+        rows in use now for every active node (needle edits and added nodes included)."""
     def reactions(self) -> Dict[str, npt.NDArray[np.float64]]:
         """{set name: (3,) force in N} that each [[fixed]] / [[prescribed]] set exerts on
         the body, from the last step's forces."""
     @property
-    def needle_force(self) -> Dict[str, Any]:
-        """{"axial", "lateral", "tip": float N, "torque": float N m, "total": (3,) array N} of the last step."""
-    def history(self, clear: bool = False) -> Dict[str, Any]:
+    def needle_force(self) -> NeedleForce:
+        """axial, lateral, tip (N), torque (N m), total ((3,) N) of the last step; also a
+        read-only mapping of those keys."""
+    def history(self, clear: bool = False) -> NeedleHistory:
         """Per-step arrays: step, time, depth, axial, lateral, tip, torque, active_nodes,
-        needle_nodes, tissue_depth (m, NaN while the tip is not in contact); state and region
-        (the region the tip is in, "" when not inside) as lists of str. clear=True also
-        empties the record (streaming)."""
+        needle_nodes, tissue_depth (m, NaN while the tip is not in contact); state (a list of
+        PunctureState) and region (the region the tip is in, "" when not inside, a list of
+        str). A read-only mapping of those columns too; to_pandas() gives a DataFrame.
+        clear=True also empties the record (streaming)."""
     @property
     def active_nodes(self) -> int: ...
     @property
@@ -129,27 +147,29 @@ class Simulation:
     @property
     def warnings(self) -> List[str]: ...
 
+@final
 class SineDevice:
     """A simulated device: a sinusoidal insertion from `start` along `direction`,
     `amplitude` m deep, `frequency` strokes per second."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         start: Tuple[float, float, float],
         direction: Tuple[float, float, float],
         amplitude: float,
         frequency: float,
         clock: Literal["scheduled", "wall"] = "scheduled",
-    ) -> None: ...
+    ) -> "SineDevice": ...
     def position_at(self, t: float) -> npt.NDArray[np.float64]:
         """The base position at time t (s)."""
 
+@final
 class HapticLoop:
     """Steps a Simulation on its own thread at `rate` Hz with the needle tied to a device
     by a virtual coupling; sends the device the coupling force."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         sim: Simulation,
         rate: float = 1000.0,
         stiffness: Optional[float] = None,
@@ -160,7 +180,7 @@ class HapticLoop:
         max_force: float = 10.0,
         max_ticks: Optional[int] = None,
         device: Optional[SineDevice] = None,
-    ) -> None: ...
+    ) -> "HapticLoop": ...
     def set_device(self, position: Tuple[float, float, float], direction: Tuple[float, float, float]) -> None:
         """Sets the device pose (needle base, direction) for the next tick."""
     @property

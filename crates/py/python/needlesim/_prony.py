@@ -30,7 +30,10 @@ def relaxation(t: np.ndarray, terms: Sequence[Tuple[float, float]], ramp: float 
     t = np.asarray(t, dtype=float)
     g_inf = 1.0 - sum(g for g, _ in terms)
     if ramp <= 0.0:
-        return g_inf + sum(g * np.exp(-t / tau) for g, tau in terms)
+        out = np.full_like(t, g_inf)
+        for g, tau in terms:
+            out += g * np.exp(-t / tau)
+        return out
     end = np.minimum(t, ramp)
     v = g_inf * end
     for g, tau in terms:
@@ -113,6 +116,7 @@ def fit_prony(
         r = least_squares(residual, x0, bounds=(lo, hi), x_scale="jac", max_nfev=2000)
         if best is None or r.cost < best.cost:
             best = r
+    assert best is not None, "at least one start was fitted"
     f0, series = unpack(best.x)
     series.sort(key=lambda gt: gt[1])
     rms = float(np.sqrt(np.mean((f0 * relaxation(t, series, ramp) - f) ** 2)))

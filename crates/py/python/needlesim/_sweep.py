@@ -58,7 +58,7 @@ def load_scene(path: Union[str, "os.PathLike[str]"]) -> Tuple[Dict[str, Any], Pa
     try:
         import tomllib  # Python 3.11+
     except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
-        import tomli as tomllib  # type: ignore[no-redef]
+        import tomli as tomllib  # type: ignore[no-redef, import-not-found]
     path = Path(path)
     with open(path, "rb") as f:
         return tomllib.load(f), path.resolve().parent
@@ -194,9 +194,9 @@ def sweep(
         raise ValueError("give steps or duration, not both")
     if duration is not None and not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive time in s, not {duration!r}")
-    for name, v in (("steps", steps), ("every", every)):
-        if v is not None and (not isinstance(v, (int, np.integer)) or v < 1):
-            raise ValueError(f"{name} must be a positive integer, not {v!r}")
+    for name, count in (("steps", steps), ("every", every)):
+        if count is not None and (not isinstance(count, (int, np.integer)) or count < 1):
+            raise ValueError(f"{name} must be a positive integer, not {count!r}")
 
     keys: List[str] = []
     for v in variants:
@@ -424,7 +424,7 @@ class _client:
 
 def _tables(
     pd: Any,
-    variants: List[Dict[str, Any]],
+    variants: Sequence[Mapping[str, Any]],
     keys: List[str],
     results: List[Optional[Dict[str, Any]]],
 ) -> SweepResult:
