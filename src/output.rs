@@ -5,6 +5,14 @@
 //! Everything is streamed: each CSV row is flushed as it is written and `surface.pvd` is
 //! rewritten (write, then rename) after every frame, so a run that stops early, however it
 //! stops, leaves readable files up to its last frame.
+//!
+//! The `.vtp` frames are written here rather than with vtkio's writer (vtkio is a
+//! dependency for reading surfaces): `tests/outputs_read.rs` reads every frame back with
+//! vtkio, which is an independent check only while vtkio did not also write them (meshio,
+//! the other light reader, does not read `.vtp`); and ASCII frames stay readable by eye.
+//! `frames.csv` and `reactions.csv` hold numbers and validated set names only and are
+//! written directly; `needle_force.csv` carries region names and uses the `csv` crate
+//! ([`crate::needle_output`]).
 
 use crate::frame::FrameMetrics;
 use std::fs::File;
