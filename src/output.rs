@@ -92,11 +92,17 @@ impl SurfaceWriter {
         })
     }
 
-    /// Continues a series whose first frames, `(time, frame)` each, are on disk (a resumed
-    /// run; the index is rewritten at the next frame).
+    /// Continues a series whose first frames are `kept`, `(time, frame)` each (a resumed
+    /// run; the index is rewritten at the next frame). Only frames whose file is on disk
+    /// are listed: a run that wrote no surface frames before its checkpoint (they were
+    /// switched off) leaves none to list.
     pub fn resume(out_dir: &Path, kept: &[(f64, usize)]) -> std::io::Result<SurfaceWriter> {
         let mut w = SurfaceWriter::new(out_dir)?;
-        w.frames = kept.iter().map(|&(t, k)| (t, frame_name(k))).collect();
+        w.frames = kept
+            .iter()
+            .map(|&(t, k)| (t, frame_name(k)))
+            .filter(|(_, name)| out_dir.join(name).is_file())
+            .collect();
         Ok(w)
     }
 

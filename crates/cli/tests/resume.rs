@@ -173,3 +173,73 @@ fn a_second_run_into_a_folder_in_use_is_refused() {
     // Free again: a run into it now works.
     cli(&["run", "--steps", "10", "--threads", "1", "--out"], &out);
 }
+
+/// A run that wrote no surface frames before its checkpoint (`surface_frames = false`),
+/// resumed with them switched on, lists in `surface.pvd` only the frames it wrote (it
+/// listed every earlier frame of frames.csv, files that do not exist).
+#[test]
+fn a_resume_lists_only_the_surface_frames_on_disk() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let text = std::fs::read_to_string(root.join("scenes/needle_insert_extract.toml")).unwrap();
+    assert!(text.contains("[run]\n"));
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, frames: bool| {
+        let path = dir.path().join(name);
+        let t = text.replace("[run]\n", &format!("[run]\nsurface_frames = {frames}\n"));
+        std::fs::write(&path, t).unwrap();
+        path
+    };
+    let (off, on) = (write("off.toml", false), write("on.toml", true));
+    let out = dir.path().join("run");
+    let o = needlesim()
+        .arg("run")
+        .arg(&off)
+        .args([
+            "--steps",
+            "600",
+            "--threads",
+            "1",
+            "--checkpoint-every",
+            "300",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!out.join("surface.pvd").exists());
+    let resumed_at = Checkpoint::read(out.join(needlesim::CHECKPOINT_FILE))
+        .unwrap()
+        .time();
+    let o = needlesim()
+        .arg("run")
+        .arg(&on)
+        .args(["--steps", "1000", "--threads", "1", "--resume"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let pvd = std::fs::read_to_string(out.join("surface.pvd")).unwrap();
+    let listed: Vec<&str> = pvd
+        .split("file=\"")
+        .skip(1)
+        .map(|s| s.split('"').next().unwrap())
+        .collect();
+    let on_disk = std::fs::read_dir(out.join("surface")).unwrap().count();
+    assert!(on_disk > 0, "the resumed run wrote no frame");
+    assert_eq!(listed.len(), on_disk, "{listed:?}");
+    for f in &listed {
+        assert!(
+            out.join(f).is_file(),
+            "surface.pvd lists {f}, which is not there"
+        );
+    }
+    // Only the resumed part's frames: every listed time is at or after the checkpoint's.
+    for t in pvd.split("timestep=\"").skip(1) {
+        let t: f64 = t.split('"').next().unwrap().parse().unwrap();
+        assert!(
+            t >= resumed_at - 1e-6,
+            "a frame at {t} s, before the checkpoint at {resumed_at} s"
+        );
+    }
+}
