@@ -306,3 +306,31 @@ fn node_count_boxes_keep_their_extent_or_name_the_count() {
     };
     assert!(e.contains("tissue.geometry.nodes"), "{e}");
 }
+
+/// A box at the origin spanning more f32-resolvable spacings than positions allow is told
+/// to coarsen its spacing, naming the spacing key (it was told to "move the body near the
+/// origin", where it already was); a small box far away is still told to move.
+#[test]
+fn too_fine_a_spacing_is_named_as_the_cause_not_the_placement() {
+    let error = |geometry: &str| {
+        let text = format!(
+            "[tissue]\ngeometry = {{ kind = \"box\", {geometry} }}\n\
+             [material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n[physics]\ndt = 1e-3\n"
+        );
+        match Scene::from_toml_str(&text, Path::new(".")).and_then(|s| Tissue::from_scene(&s)) {
+            Ok(t) => panic!("accepted with {} nodes", t.n_mesh),
+            Err(e) => e.to_string(),
+        }
+    };
+    let e = error("min = [0.0, 0.0, 0.0], max = [1.0, 1e-5, 1e-5], spacing = 5e-6");
+    assert!(
+        e.contains("tissue.geometry.spacing") && e.contains("coarser spacing"),
+        "{e}"
+    );
+    assert!(!e.contains("near the origin"), "{e}");
+    let e = error("min = [1e4, 0.0, 0.0], max = [10000.01, 0.01, 0.01], spacing = 0.001");
+    assert!(
+        e.contains("tissue.geometry.min") && e.contains("near the origin"),
+        "{e}"
+    );
+}

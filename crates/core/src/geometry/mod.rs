@@ -178,6 +178,11 @@ fn build_with(
                 lattice.spacing,
                 "tissue.geometry.min",
                 "move the body near the origin",
+                if spacing.is_some() {
+                    "tissue.geometry.spacing"
+                } else {
+                    "tissue.geometry.nodes"
+                },
             )?;
             Ok(lattice.cloud())
         }
@@ -215,6 +220,7 @@ fn build_with(
                 g.spacing,
                 "tissue.geometry.spacing",
                 "use a coarser spacing",
+                "tissue.geometry.spacing",
             )?;
             // A rotation keeps the orientation and the volume of the surface.
             let m = g
@@ -234,6 +240,7 @@ fn build_with(
                 g.spacing,
                 "tissue.geometry.translate",
                 "move the body near the origin",
+                "tissue.geometry.spacing",
             )?;
             let points = lattice::Lattice::count(lo, hi, g.spacing, 2);
             let h = g.spacing;
@@ -378,10 +385,25 @@ fn check_f32_resolution(
     h: f64,
     key: &str,
     cure: &str,
+    spacing_key: &str,
 ) -> Result<(), SceneError> {
     let far = lo.iter().chain(&hi).fold(0.0f64, |m, c| m.max(c.abs()));
     if far.is_finite() && far <= MAX_COORDINATE_SPACINGS * h {
         return Ok(());
+    }
+    // The body itself spans too many spacings (a thin box given many nodes): no
+    // placement helps, the spacing must grow.
+    let size = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f64, f64::max);
+    if size.is_finite() && size > 0.5 * MAX_COORDINATE_SPACINGS * h {
+        return Err(SceneError::invalid(
+            spacing_key,
+            format!(
+                "the body spans {size:.3e} m, {:.1e} spacings ({h:e} m): positions are stored \
+                 in f32 and could not tell neighbouring nodes apart across it; use a coarser \
+                 spacing (fewer nodes)",
+                size / h
+            ),
+        ));
     }
     Err(SceneError::invalid(
         key,
