@@ -14,6 +14,14 @@
 //!   zlib's largest compression ratio (1032:1, the only compressor this build reads)
 //!   over the 4 bytes of the smallest value type; parallel files (`.pvtp`, `.pvtu`, or a
 //!   `<Piece Source=...>`) name other files and are refused;
+//! - zlib-compressed raw appended data of XML VTK: each array's block header (block count,
+//!   block size, last block size, compressed sizes) must fit the file, claim at most
+//!   1032 times its compressed bytes, and every block must inflate to no more than the
+//!   size its header claims, checked by inflating it here with that cap (vtkio inflates a
+//!   whole block whatever the header says: a 300 KB file made it hold 690 MB), and no
+//!   array may claim more than the declared points and cells need (24 bytes a point, 128
+//!   a cell). Base64
+//!   appended data and inline arrays are left to vtkio;
 //! - binary STL: the triangle count in its header must match the file's size (84 + 50 n
 //!   bytes); a file that starts with `solid` is read as ASCII.
 //!
@@ -147,6 +155,8 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
         ));
     }
     let most = size.saturating_mul(ZLIB_MAX_RATIO) / 4;
+    // Declared points and cells over every piece: the most any appended array may hold.
+    let (mut points, mut cells) = (0u64, 0u64);
     for attribute in [
         "NumberOfPoints",
         "NumberOfCells",
@@ -164,6 +174,10 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
                 .trim()
                 .parse()
                 .map_err(|_| bad(path, format!("{attribute}=\"{value}\" is not a count")))?;
+            match attribute {
+                "NumberOfPoints" => points = points.saturating_add(n),
+                _ => cells = cells.saturating_add(n),
+            }
             // Points have 3 components.
             let values = match attribute {
                 "NumberOfPoints" => n.saturating_mul(3),
@@ -178,6 +192,148 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
                     ),
                 ));
             }
+        }
+    }
+    // 8-byte values: 3 per point, and up to 16 vertex indices per cell (a triangle mesh
+    // has 6 per point, 3 per cell), plus a little for empty arrays' headers.
+    let budget = points
+        .saturating_mul(24)
+        .saturating_add(cells.saturating_mul(128))
+        .saturating_add(4096);
+    check_appended_zlib(path, bytes, &text, budget)
+}
+
+/// The value of attribute `name` in the tag text `tag`, if present.
+fn attribute<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
+    let pattern = format!(" {name}=\"");
+    let start = tag.find(&pattern)? + pattern.len();
+    let len = tag[start..].find('"')?;
+    Some(&tag[start..start + len])
+}
+
+/// The zlib block headers of raw appended data (module docs).
+fn check_appended_zlib(
+    path: &Path,
+    bytes: &[u8],
+    text: &str,
+    budget: u64,
+) -> Result<(), GeometryError> {
+    if !text.contains("vtkZLibDataCompressor") {
+        return Ok(());
+    }
+    let Some(tag_at) = text.find("<AppendedData") else {
+        return Ok(());
+    };
+    let tag_end = tag_at + text[tag_at..].find('>').unwrap_or(0);
+    if attribute(&text[tag_at..tag_end], "encoding") != Some("raw") {
+        return Ok(());
+    }
+    // The data start after the `_` that follows the tag; the text before it is ASCII, so
+    // its byte offset in the file is its offset in the lossy text.
+    let Some(underscore) = bytes[tag_end..].iter().position(|&b| b == b'_') else {
+        return Err(bad(path, "its appended data has no `_` start mark".into()));
+    };
+    let data = &bytes[tag_end + underscore + 1..];
+    let word = if text.contains("header_type=\"UInt64\"") {
+        8
+    } else {
+        4
+    };
+    let read = |at: usize| -> Option<u64> {
+        let b = data.get(at..at + word)?;
+        Some(if word == 8 {
+            u64::from_le_bytes(b.try_into().ok()?)
+        } else {
+            u32::from_le_bytes(b.try_into().ok()?) as u64
+        })
+    };
+    let mut rest: &str = &text[..tag_at];
+    while let Some(i) = rest.find("<DataArray") {
+        let tag = &rest[i..i + rest[i..].find('>').unwrap_or(rest.len() - i)];
+        rest = &rest[i + tag.len()..];
+        if attribute(tag, "format") != Some("appended") {
+            continue;
+        }
+        let name = attribute(tag, "Name").unwrap_or("");
+        let fail = |what: String| bad(path, format!("appended array \"{name}\": {what}"));
+        let offset: usize = attribute(tag, "offset")
+            .and_then(|o| o.trim().parse().ok())
+            .ok_or_else(|| fail("no readable offset".into()))?;
+        let header = |k: usize| {
+            offset
+                .checked_add(k.checked_mul(word)?)
+                .and_then(|at| read(at))
+        };
+        let short = || fail("its compression header runs past the end of the file".into());
+        let (blocks, block, last) = (
+            header(0).ok_or_else(short)?,
+            header(1).ok_or_else(short)?,
+            header(2).ok_or_else(short)?,
+        );
+        // Every block needs a compressed size in the header and at least one byte.
+        if blocks > (data.len() / word) as u64 {
+            return Err(fail(format!(
+                "its header claims {blocks} compressed blocks, more than the file holds"
+            )));
+        }
+        let mut at = offset + (3 + blocks as usize) * word;
+        let claimed_total = match blocks {
+            0 => 0,
+            n => (n - 1)
+                .saturating_mul(block)
+                .saturating_add(if last > 0 { last } else { block }),
+        };
+        if claimed_total > budget {
+            return Err(fail(format!(
+                "its header claims {claimed_total} bytes, more than the declared points and \
+                 cells need ({budget})"
+            )));
+        }
+        let mut compressed_total = 0u64;
+        for k in 0..blocks as usize {
+            let size = header(3 + k).ok_or_else(short)? as usize;
+            let end = at
+                .checked_add(size)
+                .filter(|&e| e <= data.len())
+                .ok_or_else(|| fail(format!("block {k} runs past the end of the file")))?;
+            compressed_total += size as u64;
+            let claim = if k + 1 == blocks as usize && last > 0 {
+                last
+            } else {
+                block
+            };
+            if claim
+                > (size as u64)
+                    .saturating_mul(ZLIB_MAX_RATIO)
+                    .saturating_add(64)
+            {
+                return Err(fail(format!(
+                    "block {k} claims {claim} bytes from {size} compressed, more than zlib \
+                     can inflate"
+                )));
+            }
+            // Inflate with a cap one byte past the claim.
+            use std::io::Read;
+            let inflated = std::io::copy(
+                &mut flate2::read::ZlibDecoder::new(&data[at..end]).take(claim + 1),
+                &mut std::io::sink(),
+            )
+            .map_err(|e| fail(format!("block {k} does not inflate: {e}")))?;
+            if inflated > claim {
+                return Err(fail(format!(
+                    "block {k} inflates to more than the {claim} bytes its header claims"
+                )));
+            }
+            at = end;
+        }
+        if claimed_total
+            > compressed_total
+                .saturating_mul(ZLIB_MAX_RATIO)
+                .saturating_add(64)
+        {
+            return Err(fail(format!(
+                "its header claims {claimed_total} bytes from {compressed_total} compressed"
+            )));
         }
     }
     Ok(())

@@ -189,18 +189,22 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
             }
             Ok(())
         };
-    let split = |v: vtkio::model::VertexNumbers| -> Vec<Vec<u64>> {
-        let (connectivity, offsets) = v.into_xml();
-        let mut start = 0usize;
-        offsets
-            .iter()
-            .map(|&end| {
-                let end = (end as usize).min(connectivity.len());
-                let cell = connectivity[start.min(end)..end].to_vec();
-                start = end;
-                cell
-            })
-            .collect()
+    // vtkio asserts that a legacy cell list holds the counts its header gave: guarded,
+    // so that a file whose counts disagree is an error naming it (tests/reader_props.rs).
+    let split = |v: vtkio::model::VertexNumbers| -> Result<Vec<Vec<u64>>, GeometryError> {
+        file_guard::guarded(path, || {
+            let (connectivity, offsets) = v.into_xml();
+            let mut start = 0usize;
+            Ok(offsets
+                .iter()
+                .map(|&end| {
+                    let end = (end as usize).min(connectivity.len());
+                    let cell = connectivity[start.min(end)..end].to_vec();
+                    start = end;
+                    cell
+                })
+                .collect())
+        })
     };
     match vtk.data {
         DataSet::PolyData { pieces, .. } => {
@@ -212,10 +216,10 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
                 })?;
                 let mut cells: Vec<(Vec<u64>, bool)> = Vec::new();
                 if let Some(polys) = p.polys {
-                    cells.extend(split(polys).into_iter().map(|c| (c, false)));
+                    cells.extend(split(polys)?.into_iter().map(|c| (c, false)));
                 }
                 if let Some(strips) = p.strips {
-                    cells.extend(split(strips).into_iter().map(|c| (c, true)));
+                    cells.extend(split(strips)?.into_iter().map(|c| (c, true)));
                 }
                 add(p.points, cells)?;
             }
@@ -228,7 +232,7 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
                         .map_err(|e| load(e.to_string()))
                 })?;
                 let types = p.cells.types.clone();
-                let cells = split(p.cells.cell_verts)
+                let cells = split(p.cells.cell_verts)?
                     .into_iter()
                     .zip(types)
                     .filter_map(|(c, t)| match t {
