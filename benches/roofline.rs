@@ -124,8 +124,9 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
             // by the integration; forces: written, then read by the integration.
             "position" | "velocity" => 3 * a.bytes,
             "force" => 2 * a.bytes,
-            // The viscoelastic state: read, and the next one written.
-            "viscous_state" => 2 * a.bytes,
+            // The viscoelastic state: read, and the next one written; the integrator's
+            // position remainders likewise.
+            "viscous_state" | "position_remainder" => 2 * a.bytes,
             _ => a.bytes,
         })
         .sum();
