@@ -3,6 +3,9 @@
 //! files. Every generated input must give an error or a valid scene, and a valid scene must
 //! be prepared (`Simulation::prepare`) without a panic; nothing else is asserted.
 
+mod common;
+
+use common::within_time;
 use needlesim::core::scene::Geometry;
 use needlesim::needle::Simulation;
 use needlesim::{CpuBackend, Scene, Threading};
@@ -10,8 +13,6 @@ use proptest::prelude::*;
 use proptest::sample::Index;
 use proptest::test_runner::RngSeed;
 use std::path::Path;
-use std::sync::mpsc;
-use std::time::Duration;
 
 const INSERT_EXTRACT: &str = include_str!("../scenes/needle_insert_extract.toml");
 const CUBE_SAG: &str = include_str!("../scenes/cube_sag_msm.toml");
@@ -52,33 +53,6 @@ fn parse_and_prepare_shown(text: &str, base: &Path, shown: &str) {
             }
         }
     });
-}
-
-/// The longest one generated case may take: a case takes milliseconds, so a case that
-/// takes this long is stuck (a hang is a failure like a panic).
-const CASE_TIME_LIMIT: Duration = Duration::from_secs(20);
-
-/// Runs `f` on its own thread; a panic there is resumed here, and a run longer than
-/// [`CASE_TIME_LIMIT`] panics naming the input (the stuck thread is left behind).
-fn within_time(input: &str, f: impl FnOnce() + Send + 'static) {
-    let (tx, rx) = mpsc::channel();
-    let worker = std::thread::spawn(move || {
-        f();
-        let _ = tx.send(());
-    });
-    match rx.recv_timeout(CASE_TIME_LIMIT) {
-        Ok(()) => {
-            let _ = worker.join();
-        }
-        Err(mpsc::RecvTimeoutError::Disconnected) => {
-            if let Err(panic) = worker.join() {
-                std::panic::resume_unwind(panic);
-            }
-        }
-        Err(mpsc::RecvTimeoutError::Timeout) => {
-            panic!("no result after {CASE_TIME_LIMIT:?} for the input:\n{input}")
-        }
-    }
 }
 
 /// Whether the box's node count is known to be small (surface files are judged by
@@ -671,14 +645,10 @@ fn a_rotated_distorted_cube_resamples_without_a_panic() {
 /// most about two cells per node and shells are clipped to it.
 #[test]
 fn a_thin_tetrahedron_is_an_error_within_seconds() {
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
+    within_time("a thin tetrahedron", || {
         build_obj(
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 100\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
             "spacing = 0.5, surface = \"vertices\"",
         );
-        let _ = tx.send(());
     });
-    rx.recv_timeout(Duration::from_secs(20))
-        .expect("prepare took more than 20 s");
 }

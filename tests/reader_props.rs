@@ -4,18 +4,16 @@
 //! Each starts from a valid closed surface and is damaged: a number replaced by an edge
 //! value (a huge count, a negative one, not a number), the file cut short, bytes
 //! overwritten, a piece repeated. Every generated file must give a typed error or a tissue,
-//! within [`CASE_TIME_LIMIT`], without a panic or an abort; nothing else is asserted.
+//! within `common::CASE_TIME_LIMIT`, without a panic or an abort; nothing else is asserted.
 
+mod common;
+
+use common::within_time;
 use needlesim::{Scene, Tissue};
 use proptest::prelude::*;
 use proptest::sample::Index;
 use proptest::test_runner::RngSeed;
 use std::path::Path;
-use std::sync::mpsc;
-use std::time::Duration;
-
-/// The longest one case may take: a valid file builds in milliseconds.
-const CASE_TIME_LIMIT: Duration = Duration::from_secs(20);
 
 /// 256 cases per property from a fixed seed (every run tries the same files).
 fn config() -> ProptestConfig {
@@ -402,7 +400,7 @@ fn apply(mut bytes: Vec<u8>, d: &Damage) -> Vec<u8> {
 
 /// Writes `bytes` as `name` and builds a tissue from it (an error or a tissue: both fine),
 /// on a thread of its own; a panic there fails the case, as does a build longer than
-/// [`CASE_TIME_LIMIT`].
+/// `common::CASE_TIME_LIMIT`.
 fn build(kind: &'static str, name: &'static str, bytes: Vec<u8>) {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join(name), &bytes).unwrap();
@@ -411,27 +409,12 @@ fn build(kind: &'static str, name: &'static str, bytes: Vec<u8>) {
          [material]\nmodel = \"mass_spring\"\nstiffness = 1.0\n[run]\nmax_memory_gib = 0.05\n"
     );
     let base = dir.path().to_path_buf();
-    let (tx, rx) = mpsc::channel();
-    let worker = std::thread::spawn(move || {
+    let shown = format!("{name}: {:?}", String::from_utf8_lossy(&bytes));
+    within_time(&shown, move || {
         if let Ok(s) = Scene::from_toml_str(&scene, &base) {
             let _ = Tissue::from_scene(&s);
         }
-        let _ = tx.send(());
     });
-    match rx.recv_timeout(CASE_TIME_LIMIT) {
-        Ok(()) => {
-            let _ = worker.join();
-        }
-        Err(mpsc::RecvTimeoutError::Disconnected) => {
-            if let Err(p) = worker.join() {
-                std::panic::resume_unwind(p);
-            }
-        }
-        Err(mpsc::RecvTimeoutError::Timeout) => panic!(
-            "{name}: no result after {CASE_TIME_LIMIT:?} for the bytes {:?}",
-            String::from_utf8_lossy(&bytes)
-        ),
-    }
     drop(dir);
 }
 

@@ -141,3 +141,31 @@ pub fn mean_strain(sim: &mut Simulation, axis: usize) -> f64 {
     let var = mean(&|i| (rest[i][axis] - xm).powi(2));
     cov / var
 }
+
+/// The longest one generated case of a property test may take: a case takes
+/// milliseconds, so a case that takes this long is stuck (a hang is a failure like a
+/// panic).
+pub const CASE_TIME_LIMIT: std::time::Duration = std::time::Duration::from_secs(20);
+
+/// Runs `f` on its own thread; a panic there is resumed here, and a run longer than
+/// [`CASE_TIME_LIMIT`] panics naming the input (the stuck thread is left behind).
+pub fn within_time(input: &str, f: impl FnOnce() + Send + 'static) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let worker = std::thread::spawn(move || {
+        f();
+        let _ = tx.send(());
+    });
+    match rx.recv_timeout(CASE_TIME_LIMIT) {
+        Ok(()) => {
+            let _ = worker.join();
+        }
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+            if let Err(panic) = worker.join() {
+                std::panic::resume_unwind(panic);
+            }
+        }
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+            panic!("no result after {CASE_TIME_LIMIT:?} for the input:\n{input}")
+        }
+    }
+}

@@ -259,11 +259,7 @@ fn check_appended_zlib(
         let offset: usize = attribute(tag, "offset")
             .and_then(|o| o.trim().parse().ok())
             .ok_or_else(|| fail("no readable offset".into()))?;
-        let header = |k: usize| {
-            offset
-                .checked_add(k.checked_mul(word)?)
-                .and_then(|at| read(at))
-        };
+        let header = |k: usize| offset.checked_add(k.checked_mul(word)?).and_then(&read);
         let short = || fail("its compression header runs past the end of the file".into());
         let (blocks, block, last) = (
             header(0).ok_or_else(short)?,
