@@ -1,7 +1,9 @@
 //! The README and the user guide (`docs/`) checked against the code, so that they cannot
 //! drift: the annotated scene example against the scene file it annotates, every complete
-//! scene snippet parsed by the scene loader, the history record's size the guide quotes
-//! against the type, and every relative link and picture against the files.
+//! scene snippet parsed by the scene loader, every key the scene parser accepts named in
+//! the reference, the history record's size the guide quotes against the type, and every
+//! relative link and picture against the files. (The Python snippets run in
+//! `scripts/doc_snippets.py`.)
 
 use needlesim::needle::NeedleSample;
 use needlesim::Scene;
@@ -154,4 +156,154 @@ fn every_relative_link_names_a_file() {
         }
     }
     assert!(checked > 10, "{checked} links");
+}
+
+/// The keys a scene table accepts, from the parser itself: a key it does not know gets an
+/// error listing the ones it does (serde's `unknown field`, and the needle's own parser
+/// in the same form). `table` is a scene with `bogus = 1` placed in the table under test.
+fn accepted_keys(table: &str) -> Vec<String> {
+    // The needle's tables are read when a simulation is prepared.
+    let e = match Scene::from_toml_str(table, Path::new(".")) {
+        Ok(scene) => match needlesim::needle::Simulation::prepare(&scene) {
+            Ok(_) => panic!("a bogus key was accepted in:\n{table}"),
+            Err(e) => e.to_string(),
+        },
+        Err(e) => e.to_string(),
+    };
+    let list = e
+        .split_once("unknown field `bogus`, expected ")
+        .unwrap_or_else(|| panic!("no key list in `{e}` for:\n{table}"))
+        .1;
+    // The needle's parser ends with " in `<table>`".
+    let list = list.split(" in `").next().unwrap_or(list);
+    list.split('`')
+        .skip(1)
+        .step_by(2)
+        .map(str::to_string)
+        .collect()
+}
+
+/// A needle that the needle tables under test can be added to.
+const NEEDLE: &str = "base = [-0.11, 0.05, 0.05]\ndirection = [1.0, 0.0, 0.0]\nlength = 0.1\n";
+
+/// Whether `word` stands in `text` as a word of its own (not inside a longer name).
+fn has_word(text: &str, word: &str) -> bool {
+    let part = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    text.match_indices(word).any(|(i, _)| {
+        let before = text[..i].chars().next_back();
+        let after = text[i + word.len()..].chars().next();
+        !before.is_some_and(part) && !after.is_some_and(part)
+    })
+}
+
+/// Every key each scene table accepts is named in the scene reference, the needle chapter
+/// or the layers chapter (a key line, a table header or a word of a comment): the key
+/// lists come from the parser, so a key added to the types without a word in the guide
+/// fails here.
+#[test]
+fn every_key_the_scene_types_accept_is_in_the_reference() {
+    let guide = [
+        "docs/guide/scenes.md",
+        "docs/guide/needle.md",
+        "docs/guide/layers.md",
+    ]
+    .map(read)
+    .join("\n");
+    let box_geometry =
+        "geometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], nodes = 100 }";
+    let base = |tissue_extra: &str, material: &str, rest: &str| {
+        format!("[tissue]\n{box_geometry}\n{tissue_extra}\n[material]\n{material}\n{rest}")
+    };
+    let msm = "model = \"mass_spring\"\nstiffness = 1.0";
+    let mut tables: Vec<(String, String)> = vec![
+        ("top level".into(), format!("bogus = 1\n{}", base("", msm, ""))),
+        ("tissue".into(), base("bogus = 1", msm, "")),
+        (
+            "tissue.weight".into(),
+            base("weight = { kernel = \"poly6\", bogus = 1 }", msm, ""),
+        ),
+        ("physics".into(), base("", msm, "[physics]\nbogus = 1\n")),
+        ("run".into(), base("", msm, "[run]\nbogus = 1\n")),
+        ("initial".into(), base("", msm, "[initial]\nbogus = 1\n")),
+        (
+            "fixed".into(),
+            base("", msm, "[[fixed]]\naxis = \"x\"\nbelow = 0.01\nbogus = 1\n"),
+        ),
+        (
+            "prescribed".into(),
+            base("", msm, "[[prescribed]]\naxis = \"x\"\nbelow = 0.01\nbogus = 1\n"),
+        ),
+        (
+            "load".into(),
+            base("", msm, "[[load]]\naxis = \"x\"\nbelow = 0.01\nbogus = 1\n"),
+        ),
+        (
+            "region".into(),
+            base(
+                "",
+                msm,
+                "[[region]]\nname = \"a\"\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.05, 0.1, 0.1] }\nbogus = 1\n",
+            ),
+        ),
+        ("needle".into(), base("", msm, &format!("[needle]\n{NEEDLE}bogus = 1\n"))),
+        (
+            "needle.friction".into(),
+            base(
+                "",
+                msm,
+                &format!("[needle]\n{NEEDLE}friction = {{ coefficient = 0.3, bogus = 1 }}\n"),
+            ),
+        ),
+        (
+            "needle.friction (paper)".into(),
+            base(
+                "",
+                msm,
+                &format!("[needle]\n{NEEDLE}friction = {{ model = \"paper\", bogus = 1 }}\n"),
+            ),
+        ),
+        (
+            "needle.thresholds".into(),
+            base(
+                "",
+                msm,
+                &format!("[needle]\n{NEEDLE}thresholds = {{ puncture = 80.0, bogus = 1 }}\n"),
+            ),
+        ),
+        (
+            "needle.keyframe".into(),
+            base(
+                "",
+                msm,
+                &format!(
+                    "[needle]\n{NEEDLE}[[needle.keyframe]]\naction = \"move\"\nduration = 1.0\nbogus = 1\n"
+                ),
+            ),
+        ),
+    ];
+    for kind in ["box", "obj", "stl", "vtk"] {
+        tables.push((
+            format!("tissue.geometry ({kind})"),
+            format!("[tissue]\ngeometry = {{ kind = \"{kind}\", bogus = 1 }}\n[material]\n{msm}\n"),
+        ));
+    }
+    for m in needlesim::core::models::MODELS {
+        tables.push((
+            format!("material ({})", m.tag),
+            base("", &format!("model = \"{}\"\nbogus = 1", m.tag), ""),
+        ));
+    }
+    let mut missing = Vec::new();
+    for (name, table) in &tables {
+        for key in accepted_keys(table) {
+            if !has_word(&guide, &key) {
+                missing.push(format!("{name}: {key}"));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "accepted by the parser, not in the guide's reference:\n{}",
+        missing.join("\n")
+    );
 }
