@@ -5,10 +5,13 @@
 //!   64 MiB each (far beyond any last-level cache), on one thread and on all threads,
 //!   best of 5; it moves 12 bytes per element (the write-allocate of `a` not counted, as
 //!   STREAM counts).
-//! - Peak f32 throughput: 16 independent multiply-add chains of 8 lanes (what the
-//!   compiler keeps in vector registers), on one thread and on all threads; 2 flops per
-//!   multiply and add. The default x86-64 target has SSE2, not FMA or AVX: this is the
-//!   peak the shipped build can reach, not the chip's.
+//! - Peak f32 throughput: 12 independent multiply-add chains of 4 lanes (12 of SSE2's 16
+//!   vector registers, enough chains to cover the multiply and add latencies), on one
+//!   thread and on all threads; 2 flops per multiply and add. The default x86-64 target
+//!   has SSE2, not FMA or AVX: this is the peak the shipped build can reach, not the
+//!   chip's. (The first version ran 16 chains of 8 lanes, 32 registers' worth: they
+//!   spilled to memory and it measured 11.9 GFLOP/s on the dev machine where 12 x 4
+//!   reaches 60.)
 //! - Each model's step (forces + integration) at `NEEDLESIM_ROOFLINE_NODES` target nodes
 //!   (default 100000; a free stretched cube, K = 16, as the other benches), median of 20
 //!   steps on one thread, and its compulsory memory traffic per node-step: every array
@@ -19,6 +22,11 @@
 //!   against the triad's bandwidth: a kernel near 100% is bound by memory, one far below
 //!   by its arithmetic (the rotation extractions, the continuum models' 3x3 products) or
 //!   by latency.
+//! - Flops per node-step ([`flops_per_node_step`]), counted by hand from the CPU kernels
+//!   (a multiply, an add, a division or a square root is one flop; the four-lane loops
+//!   count every slot of a row, the scalar ones the live slots), against the peak. The
+//!   counts are within about 10%; the shape matching frames count the rotation
+//!   extraction's full iteration budget, which a converged frame cuts short.
 //!
 //! `cargo bench --bench roofline` (about a minute on 2 cores).
 
@@ -72,9 +80,9 @@ fn triad(parallel: bool) -> f64 {
 }
 
 /// Multiply-add chains per thread (independent, so their latency overlaps).
-const CHAINS: usize = 16;
-/// Lanes per chain.
-const LANES: usize = 8;
+const CHAINS: usize = 12;
+/// Lanes per chain: one SSE register each.
+const LANES: usize = 4;
 
 /// f32 GFLOP/s of `iterations` multiply-adds on [`CHAINS`] x [`LANES`] accumulators.
 fn fma_rate(iterations: usize) -> f64 {
@@ -133,6 +141,41 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
     once as f64 / cap
 }
 
+/// Flops of one node-step of the model `label` (module docs), with `k` neighbour slots
+/// per node of which `live` are live on average. The parts, from the kernels:
+///
+/// - integration (every model): velocity 15, position 6, its TwoSum 15: 36;
+/// - mass-spring, four lanes over every slot: offset 3, length 6, spring force 4,
+///   damping 11 (the benches' springs are damped), accumulation 7: 31 per slot; the lane
+///   sums 9;
+/// - a shape matching frame, four lanes over every slot: cluster sums 43 per slot, lane
+///   sums 51, the scaled matrix 49, and at most 130 per rotation iteration (2);
+///   per-node forces add the goal 36; cluster forces 51 per live slot and 36;
+/// - the continuum models' moving least squares: gradient 37 per live slot and 45, the
+///   packed first pass 74, the gather 44 per live slot and 18; the stress: linear 34,
+///   point based (Green strain, `F S`) 124, neo-Hookean 79, co-rotated (`R` from its
+///   quaternion, `R^T F - I`, linear, `R sigma`) 154 plus a shape matching frame; a
+///   viscoelastic Debunne adds the push of the relaxed stress 54 and 6 + 30 per Prony
+///   term.
+fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
+    const INTEGRATE: f64 = 36.0;
+    let frame = 43.0 * k + 51.0 + 49.0 + 130.0 * 2.0;
+    let mls = |stress: f64| 37.0 * live + 45.0 + stress + 74.0 + 44.0 * live + 18.0;
+    INTEGRATE
+        + match label {
+            "msm" => 31.0 * k + 9.0,
+            "lshm" => frame + 36.0,
+            "lshm-cluster" => frame + 51.0 * live + 36.0,
+            "deb" => mls(34.0),
+            "deb-corotated" => frame + mls(154.0),
+            "pba" => mls(124.0),
+            "nh" => mls(79.0),
+            // Two Prony terms (benches/common).
+            "deb-visco" => mls(34.0) + 54.0 + 6.0 + 30.0 * 2.0,
+            other => panic!("no flop count for the model `{other}`"),
+        }
+}
+
 /// Median seconds of one step of `b` over `steps` single steps.
 fn step_time(b: &mut CpuBackend, steps: usize) -> f64 {
     b.step(3);
@@ -161,20 +204,32 @@ fn main() {
     println!("  f32 mul + add    {fl1:8.2} GFLOP/s on 1 thread, {fl_all:8.2} GFLOP/s on {threads}");
     println!();
     println!(
-        "{:<14} {:>8} {:>16} {:>12} {:>10} {:>16}",
-        "model", "nodes", "bytes/node-step", "step ms", "GB/s", "% of 1-thr triad"
+        "{:<14} {:>8} {:>10} {:>10} {:>9} {:>7} {:>9} {:>8} {:>8}",
+        "model",
+        "nodes",
+        "bytes/n-s",
+        "flops/n-s",
+        "step ms",
+        "GB/s",
+        "GFLOP/s",
+        "% triad",
+        "% peak"
     );
     for (label, material) in MODELS {
         let tissue = Tissue::from_scene(&cube(material, nodes, 1e-5, 1.01)).unwrap();
         let bytes = bytes_per_node_step(&tissue);
         let n = tissue.n_mesh;
+        let nb = &tissue.neighbours;
+        let live = nb.weight[..n * nb.k].iter().filter(|&&w| w != 0.0).count() as f64 / n as f64;
+        let flops = flops_per_node_step(label, nb.k as f64, live);
         let mut b = CpuBackend::new(tissue, Threading::Single).unwrap();
         let t = step_time(&mut b, 20);
-        let rate = bytes * n as f64 / t / 1e9;
+        let (rate, flop_rate) = (bytes * n as f64 / t / 1e9, flops * n as f64 / t / 1e9);
         println!(
-            "{label:<14} {n:>8} {bytes:>16.0} {:>12.3} {rate:>10.2} {:>15.1}%",
+            "{label:<14} {n:>8} {bytes:>10.0} {flops:>10.0} {:>9.3} {rate:>7.2} {flop_rate:>9.2} {:>7.1}% {:>7.1}%",
             1e3 * t,
-            100.0 * rate / bw1
+            100.0 * rate / bw1,
+            100.0 * flop_rate / fl1
         );
     }
 }
