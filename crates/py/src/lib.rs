@@ -103,7 +103,15 @@ fn to_toml_at(obj: &Bound<'_, PyAny>, key: &str, depth: usize) -> PyResult<toml:
         }
         return Ok(toml::Value::Array(out));
     }
-    // numpy scalars and anything else float-like.
+    // numpy arrays and scalars: their Python form (`tolist()`: nested lists of int and
+    // float, or a single int or float), so `np.int64(100)` stays an integer.
+    if obj.hasattr("tolist")? && obj.hasattr("dtype")? {
+        let plain = obj.call_method0("tolist")?;
+        if !plain.get_type().is(obj.get_type()) {
+            return to_toml_at(&plain, key, depth + 1);
+        }
+    }
+    // Anything else float-like.
     if let Ok(f) = obj.extract::<f64>() {
         return Ok(toml::Value::Float(f));
     }

@@ -129,3 +129,42 @@ def test_surface_mesh_without_pyvista_says_how_to_get_it(inserted, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyvista", None)  # import pyvista raises ImportError
     with pytest.raises(ImportError, match="needlesim\\[pyvista\\]"):
         inserted.surface_mesh()
+
+
+def test_numpy_values_in_a_scene_dict_are_their_python_values():
+    """A scene dict built with numpy (arrays for vectors, numpy scalars for numbers) gives
+    the simulation of the plain dict (numpy arrays were refused, numpy integers became
+    floats)."""
+    plain = {
+        "tissue": {"geometry": {"kind": "box", "min": [0.0, 0.0, 0.0], "max": [0.1, 0.1, 0.1], "nodes": 100}},
+        "material": {"model": "mass_spring", "stiffness": 1.0},
+        "physics": {"dt": 1e-3, "gravity": [0.0, -9.81, 0.0]},
+    }
+    numpy = {
+        "tissue": {"geometry": {"kind": "box", "min": np.zeros(3), "max": np.full(3, 0.1), "nodes": np.int64(100)}},
+        "material": {"model": "mass_spring", "stiffness": np.float32(1.0)},
+        "physics": {"dt": np.float64(1e-3), "gravity": np.array([0.0, -9.81, 0.0])},
+    }
+    a = needlesim.Simulation.from_dict(plain, threads=1)
+    b = needlesim.Simulation.from_dict(numpy, threads=1)
+    a.step(20)
+    b.step(20)
+    assert a.active_nodes == b.active_nodes
+    assert np.array_equal(a.positions, b.positions)
+    with pytest.raises(ValueError, match="expected usize in `nodes`"):
+        bad = {**numpy, "tissue": {"geometry": {**numpy["tissue"]["geometry"], "nodes": np.array([[1, 2]])}}}
+        needlesim.Simulation.from_dict(bad, threads=1)
+
+
+def test_relaxation_refuses_what_a_scene_refuses():
+    t = np.linspace(0.0, 1.0, 5)
+    assert np.allclose(needlesim.relaxation(t, [(0.3, 0.5)])[0], 1.0)
+    for terms, ramp, what in [
+        ([(1.5, 0.5)], 0.0, "g must lie"),
+        ([(0.3, -1.0)], 0.0, "tau must be"),
+        ([(0.3, float("nan"))], 0.0, "tau must be"),
+        ([(0.6, 0.1), (0.5, 1.0)], 0.0, "sum to less than 1"),
+        ([(0.3, 0.5)], -1.0, "ramp"),
+    ]:
+        with pytest.raises(ValueError, match=what):
+            needlesim.relaxation(t, terms, ramp)

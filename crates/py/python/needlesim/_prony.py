@@ -16,6 +16,7 @@ fit is returned. Points before the end of the ramp can be left out with ``t_min`
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import List, Optional, Sequence, Tuple
 
@@ -26,7 +27,24 @@ __all__ = ["PronyFit", "fit_prony", "relaxation"]
 
 def relaxation(t: np.ndarray, terms: Sequence[Tuple[float, float]], ramp: float = 0.0) -> np.ndarray:
     """The normalised response ``F(t) / F0`` of the series ``terms`` [(g, tau), ...] to a
-    strain ramped over ``ramp`` s then held (``ramp = 0``: a step, ``g(t)`` itself)."""
+    strain ramped over ``ramp`` s then held (``ramp = 0``: a step, ``g(t)`` itself).
+    ValueError for a share outside [0, 1), shares summing to 1 or more, a time constant
+    that is not a positive number, or a ramp that is negative or not finite (the scene's
+    rules for ``material.viscoelastic``)."""
+    for i, (g, tau) in enumerate(terms):
+        if not (math.isfinite(g) and 0.0 <= g < 1.0):
+            raise ValueError(f"terms[{i}]: g must lie in [0, 1), got {g!r}")
+        if not (math.isfinite(tau) and tau > 0.0):
+            raise ValueError(f"terms[{i}]: tau must be a positive time in s, got {tau!r}")
+    if sum(g for g, _ in terms) >= 1.0:
+        raise ValueError("terms: the shares g must sum to less than 1")
+    if not (math.isfinite(ramp) and ramp >= 0.0):
+        raise ValueError(f"ramp must be a time in s >= 0, got {ramp!r}")
+    return _response(t, terms, ramp)
+
+
+def _response(t: np.ndarray, terms: Sequence[Tuple[float, float]], ramp: float) -> np.ndarray:
+    """``relaxation`` without the checks: the fit's trial series may sum past 1."""
     t = np.asarray(t, dtype=float)
     g_inf = 1.0 - sum(g for g, _ in terms)
     if ramp <= 0.0:
@@ -100,7 +118,7 @@ def fit_prony(
 
     def residual(x: np.ndarray) -> np.ndarray:
         f0, series = unpack(x)
-        r = f0 * relaxation(t, series, ramp) - f
+        r = f0 * _response(t, series, ramp) - f
         excess = sum(g for g, _ in series) - 0.999
         return np.append(r, 1e3 * max(excess, 0.0) * f.max())
 
@@ -119,5 +137,5 @@ def fit_prony(
     assert best is not None, "at least one start was fitted"
     f0, series = unpack(best.x)
     series.sort(key=lambda gt: gt[1])
-    rms = float(np.sqrt(np.mean((f0 * relaxation(t, series, ramp) - f) ** 2)))
+    rms = float(np.sqrt(np.mean((f0 * _response(t, series, ramp) - f) ** 2)))
     return PronyFit(terms=[(float(g), float(tau)) for g, tau in series], instantaneous=float(sign * f0), rms=rms)
