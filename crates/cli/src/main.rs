@@ -90,9 +90,9 @@ enum Command {
         /// Steps per run [default: the scene's run.steps or run.duration].
         #[arg(long)]
         steps: Option<u64>,
-        /// Runs at once [default: the machine's cores].
-        #[arg(long)]
-        jobs: Option<usize>,
+        /// Runs at once, at least 1 [default: the machine's cores].
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..=4096))]
+        jobs: Option<u64>,
         /// The CSV to write [default: out/<scene name>_sweep.csv].
         #[arg(long)]
         out: Option<PathBuf>,
@@ -592,7 +592,7 @@ fn sweep(
     scene_path: Option<PathBuf>,
     vary: &[String],
     steps: Option<u64>,
-    jobs: Option<usize>,
+    jobs: Option<u64>,
     out: Option<PathBuf>,
 ) -> Result<()> {
     use needlesim::sweep;
@@ -603,9 +603,11 @@ fn sweep(
     for v in &variants {
         sweep::apply(&text.toml, v)?;
     }
-    let jobs = jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
+    // clap refuses 0 and more than 4096.
+    let jobs = jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        |j| j as usize,
+    );
     let out = out.unwrap_or_else(|| PathBuf::from(format!("out/{stem}_sweep.csv")));
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -633,8 +635,9 @@ fn sweep(
         ]
         .map(String::from),
     );
-    f.write_record(&header)?;
-    f.flush()?;
+    f.write_record(&header)
+        .and_then(|_| f.flush().map_err(csv::Error::from))
+        .with_context(|| format!("writing {}", out.display()))?;
     let t0 = std::time::Instant::now();
     let (mut failed, mut finished, mut interrupted) = (0, 0, 0);
     let mut write_error: Option<csv::Error> = None;

@@ -494,3 +494,45 @@ fn sweep_matches_runs_alone_and_reports_failures() {
         );
     }
 }
+
+/// `--jobs 0` is an error naming the option (it was silently run as 1), and a sweep CSV
+/// that cannot be written names the file.
+#[test]
+fn sweep_refuses_zero_jobs_and_names_an_unwritable_csv() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let scene = root.join("scenes/needle_insert_extract.toml");
+    let o = needlesim()
+        .arg("sweep")
+        .arg(&scene)
+        .args([
+            "--vary",
+            "needle.cutting=0.1",
+            "--steps",
+            "5",
+            "--jobs",
+            "0",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "accepted: {stderr}");
+    assert!(stderr.contains("--jobs"), "{stderr}");
+    if std::path::Path::new("/dev/full").exists() {
+        let o = needlesim()
+            .arg("sweep")
+            .arg(&scene)
+            .args([
+                "--vary",
+                "needle.cutting=0.1",
+                "--steps",
+                "5",
+                "--out",
+                "/dev/full",
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "accepted: {stderr}");
+        assert!(stderr.contains("/dev/full"), "{stderr}");
+    }
+}
