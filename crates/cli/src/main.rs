@@ -215,7 +215,19 @@ fn stop_on_signals() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
     Ok(stop)
 }
 
+/// Rust's panic message stays out of the way of a surface reader's panic, which the
+/// library turns into an error naming the file (printed once, as `error: ...`).
+fn quiet_guarded_panics() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !needlesim::core::geometry::panic_is_guarded() {
+            default(info);
+        }
+    }));
+}
+
 fn main() -> std::process::ExitCode {
+    quiet_guarded_panics();
     match run(Cli::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         // The reader of stdout went away (`needlesim ... | head`): nothing more to say.

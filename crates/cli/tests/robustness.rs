@@ -224,3 +224,42 @@ fn extreme_needle_directions_normalise() {
     }
     assert!(unit([0.0; 3]).is_err());
 }
+
+/// A surface file that makes its reader panic (legacy VTK whose POLYGONS count disagrees
+/// with its cell list: vtkio asserts) is one error naming the file, without Rust's panic
+/// message before it.
+#[test]
+fn a_reader_panic_is_one_error_without_a_panic_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut vtk =
+        String::from("# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 6 float\n");
+    for v in ["1 0 0", "-1 0 0", "0 1 0", "0 -1 0", "0 0 1", "0 0 -1"] {
+        vtk += &format!("{v}\n");
+    }
+    vtk += "POLYGONS 1 32\n";
+    for t in [
+        "0 2 4", "2 1 4", "1 3 4", "3 0 4", "2 0 5", "1 2 5", "3 1 5", "0 3 5",
+    ] {
+        vtk += &format!("3 {t}\n");
+    }
+    std::fs::write(dir.path().join("bad.vtk"), vtk).unwrap();
+    let scene = dir.path().join("bad.toml");
+    std::fs::write(
+        &scene,
+        "[tissue]\nneighbours = 6\ngeometry = { kind = \"vtk\", path = \"bad.vtk\", spacing = 0.5 }\n\
+         [material]\nmodel = \"mass_spring\"\nstiffness = 1.0\n",
+    )
+    .unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_needlesim"))
+        .arg("info")
+        .arg(&scene)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.contains("bad.vtk") && stderr.contains("malformed"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

@@ -813,6 +813,14 @@ fn models(py: Python<'_>) -> PyResult<Vec<Bound<'_, PyDict>>> {
 
 #[pymodule]
 fn _needlesim(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // A surface reader's panic becomes a ValueError naming the file: no Rust panic message
+    // on stderr before it (other panics keep it).
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !needlesim::core::geometry::panic_is_guarded() {
+            default(info);
+        }
+    }));
     m.add_class::<PySimulation>()?;
     m.add_class::<haptic::PyHapticLoop>()?;
     m.add_class::<haptic::PySineDevice>()?;

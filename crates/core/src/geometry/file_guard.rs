@@ -42,12 +42,28 @@ fn bad(path: &Path, message: String) -> GeometryError {
     }
 }
 
+thread_local! {
+    /// Set while this thread runs a reader inside [`guarded`].
+    static GUARDED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether the current thread is inside a surface reader whose panic becomes a typed
+/// error naming the file. A program's panic hook can stay quiet then (the `needlesim`
+/// tool and the Python module do: the error says what happened); the library itself
+/// installs no hook.
+pub fn panic_is_guarded() -> bool {
+    GUARDED.with(|g| g.get())
+}
+
 /// Runs a reader, turning a panic inside it into an error naming the file.
 pub(crate) fn guarded<T>(
     path: &Path,
     read: impl FnOnce() -> Result<T, GeometryError>,
 ) -> Result<T, GeometryError> {
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)) {
+    let outer = GUARDED.with(|g| g.replace(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(read));
+    GUARDED.with(|g| g.set(outer));
+    match result {
         Ok(r) => r,
         Err(payload) => {
             let what = payload

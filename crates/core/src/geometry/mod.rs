@@ -20,6 +20,7 @@ pub use triangle_bins::segment_triangle;
 
 use crate::error::SceneError;
 use crate::scene::{Geometry, Scene, SurfaceNodes};
+pub use file_guard::panic_is_guarded;
 use glam::{DMat3, DVec3};
 pub use memory::{check_memory, MemoryEstimate, MeshEstimate};
 
