@@ -8,7 +8,9 @@
 //!   threads and the GPU when an adapter is found, and `step_inserted/tissue-only/...`:
 //!   the same CPU backend stepped alone, so that the difference is the needle's cost; for
 //!   the GPU, the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed
-//!   first (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out).
+//!   first (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out). Before the held benches, the
+//!   CPU runs print the needle step while the needle advances against the tissue alone
+//!   ([`advancing_overhead`]).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces, ShapeMatchingParams};
@@ -171,6 +173,9 @@ fn step_inserted_at(
             let per_step = (sim.backend().readbacks() - before) as f64 / COUNTED_STEPS as f64;
             eprintln!("{name}: {per_step:.3} blocking readbacks per needle step over {COUNTED_STEPS} steps");
         }
+        if *name != "gpu" {
+            advancing_overhead(name, sim);
+        }
         group.bench_function(BenchmarkId::new(*name, n), |b| {
             b.iter(|| sim.step().unwrap())
         });
@@ -185,6 +190,47 @@ fn step_inserted_at(
             );
         }
     }
+}
+
+/// Steps of [`advancing_overhead`]: 1 cm of advance at 10 cm/s in steps of 0.2 ms,
+/// which crosses about two node spacings of the 10,932-node cube (4.5 mm), so the shaft
+/// gains nodes on the way.
+const ADVANCE_STEPS: usize = 500;
+
+/// The needle step while the needle advances (cutting, node additions at the crack
+/// front, the shaft sliding), against the same backend stepped alone for as many steps:
+/// printed, best of 3 of each (a criterion loop cannot bound how far the needle would
+/// travel). Leaves the needle 3 cm further in, held.
+fn advancing_overhead(name: &str, sim: &mut Simulation) {
+    let step_len = 0.1 * 2e-4;
+    let mut needle_best = f64::INFINITY;
+    let mut tissue_best = f64::INFINITY;
+    let nodes_before = sim.needle_nodes().len();
+    for _ in 0..3 {
+        let t = std::time::Instant::now();
+        for _ in 0..ADVANCE_STEPS {
+            let n = sim.needle().expect("the scene has a needle");
+            let (b, d) = (n.base(), n.direction());
+            let base = [0, 1, 2].map(|k| b[k] + step_len * d[k]);
+            sim.set_pose(base, d).unwrap();
+            sim.step().unwrap();
+        }
+        needle_best = needle_best.min(t.elapsed().as_secs_f64());
+        let b = sim.backend();
+        let t = std::time::Instant::now();
+        b.step(ADVANCE_STEPS as u64);
+        tissue_best = tissue_best.min(t.elapsed().as_secs_f64());
+    }
+    assert_eq!(sim.state(), PunctureState::Inside);
+    eprintln!(
+        "{name}: advancing needle step {:.1} us, tissue-only {:.1} us: +{:.1}% \
+         ({} -> {} needle nodes over 3 cm)",
+        1e6 * needle_best / ADVANCE_STEPS as f64,
+        1e6 * tissue_best / ADVANCE_STEPS as f64,
+        100.0 * (needle_best / tissue_best - 1.0),
+        nodes_before,
+        sim.needle_nodes().len()
+    );
 }
 
 criterion_group!(benches, add_remove, step_inserted);
