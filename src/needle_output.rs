@@ -29,12 +29,16 @@ pub struct NeedleRow {
     /// Step number.
     pub step: u64,
     /// Simulated time, s.
+    #[serde(serialize_with = "seven_digits")]
     pub time_s: f64,
     /// Tip depth past first contact along the needle, m.
+    #[serde(serialize_with = "seven_digits")]
     pub depth_m: f64,
     /// Axial force, N (positive: the tissue resists insertion).
+    #[serde(serialize_with = "seven_digits")]
     pub axial_force_n: f64,
     /// Lateral force, N.
+    #[serde(serialize_with = "seven_digits")]
     pub lateral_force_n: f64,
     /// `outside`, `touching` or `inside`.
     pub state: String,
@@ -45,10 +49,13 @@ pub struct NeedleRow {
     /// The region the tip is in, empty while it is not inside.
     pub region: String,
     /// Tip depth in the undeformed tissue, m; empty (`None`) while not in contact.
+    #[serde(serialize_with = "seven_digits_or_empty")]
     pub tissue_depth_m: Option<f64>,
     /// The tip elements' share of the axial force, N.
+    #[serde(serialize_with = "seven_digits")]
     pub tip_force_n: f64,
     /// Friction torque about the needle's axis, N m.
+    #[serde(serialize_with = "seven_digits")]
     pub torque_nm: f64,
 }
 
@@ -60,13 +67,17 @@ fn state_name(s: PunctureState) -> &'static str {
     }
 }
 
-/// `x` to 7 significant digits, the resolution the file has always had (`{:.6e}`): the
-/// forces come from f32 node arrays, and the file stays half the size of full f64 text.
-fn sig7(x: f64) -> f64 {
-    if x.is_finite() {
-        format!("{x:.6e}").parse().unwrap_or(x)
-    } else {
-        x
+/// Writes `x` with 7 significant digits (`{:.6e}`), the resolution the file has always
+/// had: the forces come from f32 node arrays, and full f64 text would double the file.
+fn seven_digits<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&format!("{x:.6e}"))
+}
+
+/// [`seven_digits`], or an empty field for `None`.
+fn seven_digits_or_empty<S: serde::Serializer>(x: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+    match x {
+        Some(x) => seven_digits(x, s),
+        None => s.serialize_none(),
     }
 }
 
@@ -114,17 +125,17 @@ impl NeedleCsv {
                 .map_or("", |n| n.as_str());
             self.out.serialize(NeedleRow {
                 step: s.step,
-                time_s: sig7(s.time),
-                depth_m: sig7(sim.depth_of(s.tip, s.direction)),
-                axial_force_n: sig7(s.force.axial),
-                lateral_force_n: sig7(s.force.lateral),
+                time_s: s.time,
+                depth_m: sim.depth_of(s.tip, s.direction),
+                axial_force_n: s.force.axial,
+                lateral_force_n: s.force.lateral,
                 state: state_name(s.state).to_string(),
                 active_nodes: s.active_nodes,
                 needle_nodes: s.needle_nodes,
                 region: region.to_string(),
-                tissue_depth_m: s.tissue_depth.map(sig7),
-                tip_force_n: sig7(s.force.tip),
-                torque_nm: sig7(s.force.torque),
+                tissue_depth_m: s.tissue_depth,
+                tip_force_n: s.force.tip,
+                torque_nm: s.force.torque,
             })?;
         }
         self.written = sim.history().last().map(|s| s.step).or(self.written);
@@ -185,10 +196,35 @@ mod tests {
         assert_eq!(text.lines().next(), Some(NEEDLE_CSV_HEADER));
     }
 
+    /// Numbers are written with 7 significant digits and read back as those.
     #[test]
-    fn seven_digits() {
-        assert_eq!(sig7(0.123456789), 0.1234568);
-        assert_eq!(sig7(-1.5e-9), -1.5e-9);
-        assert!(sig7(f64::NAN).is_nan());
+    fn seven_digits_round_trip() {
+        let row = NeedleRow {
+            step: 3,
+            time_s: 0.123456789,
+            depth_m: -1.5e-9,
+            axial_force_n: 0.0,
+            lateral_force_n: 0.0,
+            state: "inside".into(),
+            active_nodes: 0,
+            needle_nodes: 0,
+            region: "a, \"b\"".into(),
+            tissue_depth_m: Some(2.0),
+            tip_force_n: 0.0,
+            torque_nm: 0.0,
+        };
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(Vec::new());
+        w.serialize(&row).unwrap();
+        let text = String::from_utf8(w.into_inner().unwrap()).unwrap();
+        assert!(text.starts_with("3,1.234568e-1,-1.500000e-9,"), "{text}");
+        let back =
+            &parse_needle_csv(format!("{NEEDLE_CSV_HEADER}\n{text}").as_bytes(), "x").unwrap()[0];
+        assert_eq!(back.time_s, 0.1234568);
+        assert_eq!(
+            (back.region.as_str(), back.tissue_depth_m),
+            ("a, \"b\"", Some(2.0))
+        );
     }
 }

@@ -5,6 +5,9 @@
 //! regular file. Each case failed before (a panic, an abort on a huge allocation, a hang,
 //! or a silent wrong result) and is now a typed error naming the file, key or set.
 
+mod common;
+
+use common::{OCTAHEDRON_TRIANGLES, OCTAHEDRON_VERTICES};
 use needlesim::{Scene, Tissue};
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -119,29 +122,11 @@ fn stl_counts_are_checked_and_an_unnamed_ascii_solid_loads() {
     let e = surface_error(d, "stl", "huge.stl");
     assert!(e.contains("4294967295 triangles"), "{e}");
     // A valid ASCII STL whose `solid` line has no name (read as binary before).
-    let v = [
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-    ];
-    let faces = [
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
     let mut s = String::from("solid\n");
-    for f in faces {
+    for f in OCTAHEDRON_TRIANGLES {
         s.push_str("facet normal 0 0 0\nouter loop\n");
         for i in f {
-            let p: [f64; 3] = v[i];
+            let p = OCTAHEDRON_VERTICES[i as usize];
             s.push_str(&format!("vertex {} {} {}\n", p[0], p[1], p[2]));
         }
         s.push_str("endloop\nendfacet\n");

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::within_time;
+use common::{within_time, OCTAHEDRON_TRIANGLES, OCTAHEDRON_VERTICES};
 use needlesim::{Scene, Tissue};
 use proptest::prelude::*;
 use proptest::sample::Index;
@@ -24,25 +24,9 @@ fn config() -> ProptestConfig {
     }
 }
 
-/// The octahedron of radius 1: vertices and outward triangles.
-const VERTICES: [[f32; 3]; 6] = [
-    [1.0, 0.0, 0.0],
-    [-1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, -1.0, 0.0],
-    [0.0, 0.0, 1.0],
-    [0.0, 0.0, -1.0],
-];
-const TRIANGLES: [[u32; 3]; 8] = [
-    [0, 2, 4],
-    [2, 1, 4],
-    [1, 3, 4],
-    [3, 0, 4],
-    [2, 0, 5],
-    [1, 2, 5],
-    [3, 1, 5],
-    [0, 3, 5],
-];
+/// The shapes every generated file starts from.
+const VERTICES: [[f32; 3]; 6] = OCTAHEDRON_VERTICES;
+const TRIANGLES: [[u32; 3]; 8] = OCTAHEDRON_TRIANGLES;
 
 fn legacy_ascii() -> Vec<u8> {
     let mut s = String::from("# vtk DataFile Version 3.0\noctahedron\nASCII\nDATASET POLYDATA\n");

@@ -169,3 +169,25 @@ pub fn within_time(input: &str, f: impl FnOnce() + Send + 'static) {
         }
     }
 }
+
+/// The octahedron of radius 1 about the origin: its vertices ...
+pub const OCTAHEDRON_VERTICES: [[f32; 3]; 6] = [
+    [1.0, 0.0, 0.0],
+    [-1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, -1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [0.0, 0.0, -1.0],
+];
+
+/// ... and its outward triangles (0-based).
+pub const OCTAHEDRON_TRIANGLES: [[u32; 3]; 8] = [
+    [0, 2, 4],
+    [2, 1, 4],
+    [1, 3, 4],
+    [3, 0, 4],
+    [2, 0, 5],
+    [1, 2, 5],
+    [3, 1, 5],
+    [0, 3, 5],
+];

@@ -501,38 +501,23 @@ fn sweep_matches_runs_alone_and_reports_failures() {
 fn sweep_refuses_zero_jobs_and_names_an_unwritable_csv() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let scene = root.join("scenes/needle_insert_extract.toml");
-    let o = needlesim()
-        .arg("sweep")
-        .arg(&scene)
-        .args([
-            "--vary",
-            "needle.cutting=0.1",
-            "--steps",
-            "5",
-            "--jobs",
-            "0",
-        ])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success(), "accepted: {stderr}");
-    assert!(stderr.contains("--jobs"), "{stderr}");
-    if std::path::Path::new("/dev/full").exists() {
+    // A sweep of one 5-step variant with `extra` options: it must fail; its stderr.
+    let refused = |extra: &[&str]| {
         let o = needlesim()
             .arg("sweep")
             .arg(&scene)
-            .args([
-                "--vary",
-                "needle.cutting=0.1",
-                "--steps",
-                "5",
-                "--out",
-                "/dev/full",
-            ])
+            .args(["--vary", "needle.cutting=0.1", "--steps", "5"])
+            .args(extra)
             .output()
             .unwrap();
-        let stderr = String::from_utf8_lossy(&o.stderr);
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(!o.status.success(), "accepted: {stderr}");
+        stderr
+    };
+    let stderr = refused(&["--jobs", "0"]);
+    assert!(stderr.contains("--jobs"), "{stderr}");
+    if std::path::Path::new("/dev/full").exists() {
+        let stderr = refused(&["--out", "/dev/full"]);
         assert!(stderr.contains("/dev/full"), "{stderr}");
     }
 }

@@ -206,11 +206,7 @@ impl PySimulation {
         let n = b.n_active();
         let mut buf = vec![[0.0f32; 4]; n];
         b.read(field, 0..n, &mut buf).map_err(runtime_error)?;
-        let flat: Vec<f64> = buf
-            .iter()
-            .flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
-            .collect();
-        rows(py, flat, 3)
+        vectors(py, &buf)
     }
 
     /// The surface's nodes (in the order of first use by its triangles), their positions
@@ -265,6 +261,15 @@ type NeighbourRows<'py> = (Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f32>>)
 
 /// Vertices (m, 3) and faces (t, 3).
 type Mesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
+
+/// The xyz of node vectors as a float64 (n, 3) array (exact: every f32 is an f64).
+fn vectors<'py>(py: Python<'py>, buf: &[[f32; 4]]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let flat: Vec<f64> = buf
+        .iter()
+        .flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+        .collect();
+    rows(py, flat, 3)
+}
 
 fn rows<'py, T: numpy::Element>(
     py: Python<'py>,
@@ -642,14 +647,8 @@ impl PySimulation {
         }
         drop(sim);
         let arrays = bufs
-            .into_iter()
-            .map(|buf| {
-                let flat: Vec<f64> = buf
-                    .iter()
-                    .flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
-                    .collect();
-                rows(py, flat, 3)
-            })
+            .iter()
+            .map(|buf| vectors(py, buf))
             .collect::<PyResult<Vec<_>>>()?;
         PyTuple::new(py, arrays)
     }
