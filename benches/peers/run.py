@@ -6,6 +6,9 @@ process tree, printed as one table with ratios.
     NEEDLESIM_PEERS_1M=1 python3 benches/peers/run.py   # adds 1M nodes
     python3 benches/peers/run.py --cuda          # adds needlesim's GPU backend and the
                                                  # peers' CUDA runs (a CUDA GPU needed)
+    python3 benches/peers/run.py --gpu-only --python python3 --no-install
+                                                 # only the GPU rows, with an interpreter
+                                                 # that already has the three packages
 
 It makes its own virtual environment (``target/peers-venv``; ``--venv`` to move it) with
 warp-lang and taichi at the versions of ``requirements.txt`` and needlesim built in
@@ -69,8 +72,16 @@ def machine() -> dict:
             "python": platform.python_version(), "date": time.strftime("%Y-%m-%d %H:%M")}
 
 
-def engine(py: Path, script: str, args: list, env: dict) -> dict:
-    out = sh([str(py), str(HERE / script), *map(str, args)], env=env, capture=True)
+def engine(py: Path, script: str, args: list, env: dict, keep_going: bool) -> dict | None:
+    """One engine's run in its own process: its JSON result line, or None when it failed
+    and `keep_going` is set (the failure is printed; the other engines still run)."""
+    try:
+        out = sh([str(py), str(HERE / script), *map(str, args)], env=env, capture=True)
+    except SystemExit as e:
+        if not keep_going:
+            raise
+        print(f"skipped: {e}", file=sys.stderr, flush=True)
+        return None
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -87,7 +98,14 @@ def main() -> None:
     p.add_argument("--seconds", type=float, default=3.0, help="per timed repeat")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--cuda", action="store_true")
+    p.add_argument("--gpu-only", action="store_true",
+                   help="only needlesim's GPU backend and the peers' CUDA runs")
+    p.add_argument("--keep-going", action="store_true",
+                   help="an engine that fails is reported and skipped, not fatal")
     p.add_argument("--no-install", action="store_true")
+    p.add_argument("--python", default=None,
+                   help="interpreter that already has numpy, needlesim, warp and taichi "
+                   "(implies --no-install)")
     p.add_argument("--venv", default=str(ROOT / "target" / "peers-venv"))
     p.add_argument("--wheels", default=None)
     p.add_argument("--out", default=str(ROOT / "target" / "peers"))
@@ -96,10 +114,14 @@ def main() -> None:
     if not a.sizes and os.environ.get("NEEDLESIM_PEERS_1M"):
         sizes.append(100)
     venv = Path(a.venv)
-    py = venv / "bin" / "python" if a.no_install else install(venv, a.wheels)
+    if a.python:
+        py = Path(a.python)
+    else:
+        py = venv / "bin" / "python" if a.no_install else install(venv, a.wheels)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    env = dict(os.environ, PYTHONPATH=str(HERE), RAYON_NUM_THREADS="2",
+    path = os.pathsep.join(p for p in [str(HERE), os.environ.get("PYTHONPATH")] if p)
+    env = dict(os.environ, PYTHONPATH=path, RAYON_NUM_THREADS="2",
                TI_LOG_LEVEL="warn")
     before = machine()
     runs = []
@@ -108,8 +130,14 @@ def main() -> None:
         for n in sizes:
             wfile = out / f"{kernel}_{n}.npz"
             engine_args = ["--seconds", a.seconds, "--repeats", a.repeats]
-            sh([str(py), str(HERE / "needlesim_engine.py"), "export", kernel, n, wfile],
-               env=env)
+            try:
+                sh([str(py), str(HERE / "needlesim_engine.py"), "export", kernel, n, wfile],
+                   env=env)
+            except SystemExit as e:
+                if not a.keep_going:
+                    raise
+                print(f"skipped {kernel} {n}^3: {e}", file=sys.stderr, flush=True)
+                continue
             jobs = [
                 ("needlesim 1 thr", "needlesim_engine.py", ["time", wfile, "--threads", 1]),
                 ("Warp CPU 1 thr", "warp_engine.py", [wfile, "--device", "cpu"]),
@@ -118,14 +146,18 @@ def main() -> None:
                  ["time", wfile, "--threads", threads2]),
                 (f"Taichi {threads2} thr", "taichi_engine.py", [wfile, "--threads", threads2]),
             ]
-            if a.cuda:
+            if a.gpu_only:
+                jobs = []
+            if a.cuda or a.gpu_only:
                 jobs += [
                     ("needlesim GPU", "needlesim_engine.py", ["time", wfile, "--backend", "gpu"]),
                     ("Warp CUDA", "warp_engine.py", [wfile, "--device", "cuda"]),
                     ("Taichi CUDA", "taichi_engine.py", [wfile, "--arch", "cuda"]),
                 ]
             for label, script, args in jobs:
-                r = engine(py, script, args + engine_args, env)
+                r = engine(py, script, args + engine_args, env, a.keep_going)
+                if r is None:
+                    continue
                 r.update(kernel=kernel, nodes=n**3, label=label)
                 runs.append(r)
                 print(f"{kernel} {n**3} {label}: {median(r['rates']):.1f} steps/s "
@@ -138,23 +170,32 @@ def main() -> None:
                                                   "runs": runs}, indent=1))
 
 
+def is_gpu(label: str) -> bool:
+    """Whether a row label is a GPU run (needlesim's GPU backend, a peer's CUDA run)."""
+    return "GPU" in label or "CUDA" in label
+
+
 def table(runs, before, after, threads2) -> str:
     labels = []
     for r in runs:
         if r["label"] not in labels:
             labels.append(r["label"])
     versions = {r["engine"]: r["version"] for r in runs}
+    gpu = int(any(is_gpu(label) for label in labels))
     lines = [
         f"Machine: {before['cpu']}, {before['cores']} cores; load average "
         f"{before['load'][0]:.2f} before, {after['load'][0]:.2f} after; {before['date']}; "
-        + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".",
+        + ", ".join(f"{k} {v}" for k, v in versions.items())
+        + "".join(f"; device {d}" for d in sorted({r["device"] for r in runs
+                                                  if is_gpu(r["label"])}))
+        + ".",
         "Steps per second, median of the timed repeats (ratio = needlesim / best peer on the "
         "same threads; deviation = largest node distance from needlesim's one-thread result "
         "after 100 steps, over the largest displacement).",
         "",
         "| kernel | nodes | " + " | ".join(labels) + f" | ratio 1 thr | ratio {threads2} thr"
-        " | max deviation |",
-        "|---|---:|" + "---:|" * (len(labels) + 3),
+        + (" | ratio GPU" if gpu else "") + " | max deviation |",
+        "|---|---:|" + "---:|" * (len(labels) + 3 + gpu),
     ]
     keys = []
     for r in runs:
@@ -171,9 +212,10 @@ def table(runs, before, after, threads2) -> str:
         cells = [f"{rate[label]:,.0f}" if label in rate else "-" for label in labels]
         r1 = ratio("needlesim 1 thr", ["Warp CPU 1 thr", "Taichi 1 thr"])
         r2 = ratio(f"needlesim {threads2} thr", [f"Taichi {threads2} thr"])
+        rg = ratio("needlesim GPU", ["Warp CUDA", "Taichi CUDA"])
         dev = max(r["deviation"] for r in rs.values())
         lines.append(f"| {kernel.replace('_', ' ')} | {nodes:,} | " + " | ".join(cells)
-                     + f" | {r1} | {r2} | {dev:.1e} |")
+                     + f" | {r1} | {r2}" + (f" | {rg}" if gpu else "") + f" | {dev:.1e} |")
     return "\n".join(lines) + "\n"
 
 

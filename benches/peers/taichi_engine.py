@@ -48,6 +48,7 @@ def build(w, arch_threads):
     kk = w["index"].shape[1]
     dt = float(w["meta"]["dt"])
     gravity = vec3(*wl.GRAVITY)
+    damp = float(np.float32(wl.damping_factor(float(dt))))
     x = ti.Vector.field(3, ti.f32, n)
     v = ti.Vector.field(3, ti.f32, n)
     f = ti.Vector.field(3, ti.f32, n)
@@ -67,7 +68,7 @@ def build(w, arch_threads):
             if im == 0.0:
                 v[i] = vec3(0.0, 0.0, 0.0)
             else:
-                vel = v[i] + dt * (f[i] * im + gravity)
+                vel = (v[i] + dt * (f[i] * im + gravity)) * damp
                 x[i] = x[i] + dt * vel
                 v[i] = vel
 
@@ -76,7 +77,7 @@ def build(w, arch_threads):
         rest_length.from_numpy(
             np.linalg.norm(rest_np[w["index"]] - rest_np[:, None, :], axis=2).astype(np.float32)
         )
-        k = wl.MASS_SPRING_K
+        k = wl.mass_spring_k(w["meta"]["n"])
 
         @ti.kernel
         def force():
@@ -100,7 +101,7 @@ def build(w, arch_threads):
         rest.from_numpy(rest_np)
         sv.from_numpy(wl.shape_vectors(rest_np, w["index"], w["weight"]))
         rot.from_numpy(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)).astype(np.float32))
-        k, iterations = wl.SHAPE_MATCHING_K, wl.ROTATION_ITERATIONS
+        k, iterations = wl.shape_matching_k(w["meta"]["n"]), wl.ROTATION_ITERATIONS
 
         @ti.kernel
         def force():
@@ -165,6 +166,10 @@ def main() -> None:
     a = p.parse_args()
     if a.arch == "cuda":
         ti.init(arch=ti.cuda, default_fp=ti.f32, log_level=ti.WARN)
+        # Taichi falls back to the CPU, with a warning, where CUDA does not start: a
+        # "CUDA" row must not be a CPU run.
+        if ti.lang.impl.current_cfg().arch != ti.cuda:
+            raise SystemExit("Taichi could not start on CUDA")
     else:
         ti.init(arch=ti.cpu, cpu_max_num_threads=a.threads, default_fp=ti.f32, log_level=ti.WARN)
     w = wl.load(a.workload)

@@ -2,9 +2,11 @@
 description; the CPU device runs a kernel launch on one thread).
 
     python warp_engine.py WORKLOAD.npz --device cpu|cuda --seconds S
-"""
 
-from __future__ import annotations
+No `from __future__ import annotations` here: Warp before 1.4 reads the kernels' type
+annotations as objects and rejects them as strings (1.0.2 is the version that fits a
+device run's 64 MiB carry; see docs/guide/performance.md).
+"""
 
 import argparse
 
@@ -106,13 +108,14 @@ def integrate(
     inv_mass: wp.array(dtype=wp.float32),
     dt: wp.float32,
     gravity: wp.vec3,
+    damp: wp.float32,
 ):
     i = wp.tid()
     im = inv_mass[i]
     if im == 0.0:
         v[i] = wp.vec3()
     else:
-        vel = v[i] + dt * (f[i] * im + gravity)
+        vel = (v[i] + dt * (f[i] * im + gravity)) * damp
         x[i] = x[i] + dt * vel
         v[i] = vel
 
@@ -141,21 +144,22 @@ def main() -> None:
     idx = wp.array(index, dtype=wp.int32, device=dev)
     wgt = wp.array(weight, dtype=wp.float32, device=dev)
     gravity = wp.vec3(*wl.GRAVITY)
+    damp = np.float32(wl.damping_factor(float(dt)))
     if kernel == "mass_spring":
         lengths = np.linalg.norm(rest[index] - rest[:, None, :], axis=2).astype(np.float32)
         rl = wp.array(lengths, dtype=wp.float32, device=dev)
-        force = (mass_spring_force, [x, idx, wgt, rl, wl.MASS_SPRING_K, f])
+        force = (mass_spring_force, [x, idx, wgt, rl, wl.mass_spring_k(w["meta"]["n"]), f])
     else:
         sv = wp.array(wl.shape_vectors(rest, index, weight), dtype=wp.vec3, device=dev)
         rot = wp.array(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)).astype(np.float32),
                        dtype=wp.quat, device=dev)
         r0 = wp.array(rest, dtype=wp.vec3, device=dev)
         force = (shape_matching_force,
-                 [x, r0, sv, idx, wgt, wl.SHAPE_MATCHING_K, wl.ROTATION_ITERATIONS, rot, f])
+                 [x, r0, sv, idx, wgt, wl.shape_matching_k(w["meta"]["n"]), wl.ROTATION_ITERATIONS, rot, f])
 
     def one_step():
         wp.launch(force[0], dim=n, inputs=force[1], device=dev)
-        wp.launch(integrate, dim=n, inputs=[x, v, f, inv_mass, dt, gravity], device=dev)
+        wp.launch(integrate, dim=n, inputs=[x, v, f, inv_mass, dt, gravity, damp], device=dev)
 
     graph = None
     if wp.get_device(dev).is_cuda:
