@@ -157,6 +157,12 @@ enum Claim {
 /// XML PolyData with zlib-compressed raw appended data (`header_type="UInt64"`, one block
 /// per array), as VTK and ParaView write it; `claim` damages the points array's header.
 fn vtp_zlib(claim: Claim) -> Vec<u8> {
+    vtp_zlib_encoded(claim, false)
+}
+
+/// As [`vtp_zlib`], with the appended data raw or base64 (VTK's layout: each array's
+/// header encoded on its own, then its compressed blocks).
+fn vtp_zlib_encoded(claim: Claim, base64: bool) -> Vec<u8> {
     use flate2::write::ZlibEncoder;
     use std::io::Write;
     // vtkio's XML reader stumbles on a `<`, `>` or `&` byte in raw appended data (ParaView
@@ -178,12 +184,16 @@ fn vtp_zlib(claim: Claim) -> Vec<u8> {
             Claim::Liar(_) => (1, 72),
             _ => (1, n),
         };
-        let mut out = Vec::new();
+        let mut header = Vec::new();
         for w in [blocks, size, size, c.len() as u64] {
-            out.extend(w.to_le_bytes());
+            header.extend(w.to_le_bytes());
         }
-        out.extend(c);
-        out
+        match base64 {
+            false => [header, c].concat(),
+            true => [base64::encode(header), base64::encode(c)]
+                .concat()
+                .into_bytes(),
+        }
     };
     let points: Vec<u8> = match claim {
         Claim::Bomb(n) | Claim::Liar(n) => vec![0u8; n],
@@ -214,7 +224,8 @@ fn vtp_zlib(claim: Claim) -> Vec<u8> {
          <Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"appended\" offset=\"0\"/></Points>\n\
          <Polys><DataArray type=\"Int32\" Name=\"connectivity\" format=\"appended\" offset=\"{o1}\"/>\n\
          <DataArray type=\"Int32\" Name=\"offsets\" format=\"appended\" offset=\"{o2}\"/></Polys>\n\
-         </Piece>\n</PolyData>\n<AppendedData encoding=\"raw\">\n_"
+         </Piece>\n</PolyData>\n<AppendedData encoding=\"{}\">\n_",
+        if base64 { "base64" } else { "raw" }
     )
     .into_bytes();
     for a in arrays {
@@ -230,9 +241,20 @@ fn vtp_zlib(claim: Claim) -> Vec<u8> {
 /// inflated to 300 MB (690 MB held). The honest file builds.
 #[test]
 fn zlib_headers_and_bombs_in_appended_data_are_errors() {
+    zlib_appended_checks(false);
+}
+
+/// The same with base64 appended data: before, vtkio inflated a base64 bomb whatever its
+/// header claimed.
+#[test]
+fn zlib_headers_and_bombs_in_base64_appended_data_are_errors() {
+    zlib_appended_checks(true);
+}
+
+fn zlib_appended_checks(base64: bool) {
     let error = |claim: Claim| {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("z.vtp"), vtp_zlib(claim)).unwrap();
+        std::fs::write(dir.path().join("z.vtp"), vtp_zlib_encoded(claim, base64)).unwrap();
         let scene = "[tissue]\nneighbours = 6\ngeometry = { kind = \"vtk\", path = \"z.vtp\", spacing = 0.5 }\n\
                      [material]\nmodel = \"mass_spring\"\nstiffness = 1.0\n";
         Scene::from_toml_str(scene, dir.path())
@@ -411,6 +433,7 @@ fn the_undamaged_files_build() {
         ("vtk", "a.vtp", vtp(false)),
         ("vtk", "b.vtp", vtp(true)),
         ("vtk", "c.vtp", vtp_zlib(Claim::Honest)),
+        ("vtk", "d.vtp", vtp_zlib_encoded(Claim::Honest, true)),
         ("stl", "a.stl", stl_ascii()),
         ("stl", "b.stl", stl_binary()),
     ] {
@@ -449,9 +472,11 @@ proptest! {
 
     #[test]
     fn damaged_compressed_vtp_is_an_error_or_a_tissue(
+        base64 in any::<bool>(),
         damage in prop::collection::vec(damage(), 1..4),
     ) {
-        build("vtk", "fuzz.vtp", damage.iter().fold(vtp_zlib(Claim::Honest), apply));
+        let bytes = vtp_zlib_encoded(Claim::Honest, base64);
+        build("vtk", "fuzz.vtp", damage.iter().fold(bytes, apply));
     }
 
     #[test]

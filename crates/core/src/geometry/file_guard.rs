@@ -20,8 +20,9 @@
 //!   size its header claims, checked by inflating it here with that cap (vtkio inflates a
 //!   whole block whatever the header says: a 300 KB file made it hold 690 MB), and no
 //!   array may claim more than the declared points and cells need (24 bytes a point, 128
-//!   a cell). Base64
-//!   appended data and inline arrays are left to vtkio;
+//!   a cell). The same holds for base64 appended data, decoded as VTK writes it (the
+//!   header encoded on its own, then the blocks together). Inline compressed arrays are
+//!   left to vtkio, which does not inflate them (it fails them on their size);
 //! - binary STL: the triangle count in its header must match the file's size (84 + 50 n
 //!   bytes); a file that starts with `solid` is read as ASCII.
 //!
@@ -29,6 +30,7 @@
 //! OBJ names, a device or a pipe included; the tissue needs no materials).
 
 use crate::error::GeometryError;
+use std::borrow::Cow;
 use std::path::Path;
 
 /// zlib's largest compression ratio (deflate's maximum, about 1032:1).
@@ -227,7 +229,7 @@ fn attribute<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
     Some(&tag[start..start + len])
 }
 
-/// The zlib block headers of raw appended data (module docs).
+/// The zlib block headers of appended data, raw or base64 (module docs).
 fn check_appended_zlib(
     path: &Path,
     bytes: &[u8],
@@ -241,9 +243,11 @@ fn check_appended_zlib(
         return Ok(());
     };
     let tag_end = tag_at + text[tag_at..].find('>').unwrap_or(0);
-    if attribute(&text[tag_at..tag_end], "encoding") != Some("raw") {
-        return Ok(());
-    }
+    let base64 = match attribute(&text[tag_at..tag_end], "encoding") {
+        Some("raw") => false,
+        Some("base64") => true,
+        _ => return Ok(()),
+    };
     // The data start after the `_` that follows the tag; the text before it is ASCII, so
     // its byte offset in the file is its offset in the lossy text.
     let Some(underscore) = bytes[tag_end..].iter().position(|&b| b == b'_') else {
@@ -254,14 +258,6 @@ fn check_appended_zlib(
         8
     } else {
         4
-    };
-    let read = |at: usize| -> Option<u64> {
-        let b = data.get(at..at + word)?;
-        Some(if word == 8 {
-            u64::from_le_bytes(b.try_into().ok()?)
-        } else {
-            u32::from_le_bytes(b.try_into().ok()?) as u64
-        })
     };
     let mut rest: &str = &text[..tag_at];
     while let Some(i) = rest.find("<DataArray") {
@@ -275,78 +271,144 @@ fn check_appended_zlib(
         let offset: usize = attribute(tag, "offset")
             .and_then(|o| o.trim().parse().ok())
             .ok_or_else(|| fail("no readable offset".into()))?;
-        let header = |k: usize| offset.checked_add(k.checked_mul(word)?).and_then(&read);
-        let short = || fail("its compression header runs past the end of the file".into());
-        let (blocks, block, last) = (
-            header(0).ok_or_else(short)?,
-            header(1).ok_or_else(short)?,
-            header(2).ok_or_else(short)?,
-        );
-        // Every block needs a compressed size in the header and at least one byte.
-        if blocks > (data.len() / word) as u64 {
-            return Err(fail(format!(
-                "its header claims {blocks} compressed blocks, more than the file holds"
-            )));
+        let array = data.get(offset..).unwrap_or_default();
+        let (header, blocks) = match base64 {
+            false => raw_array(array, word),
+            true => base64_array(array, word),
         }
-        let mut at = offset + (3 + blocks as usize) * word;
-        let claimed_total = match blocks {
-            0 => 0,
-            n => (n - 1)
-                .saturating_mul(block)
-                .saturating_add(if last > 0 { last } else { block }),
+        .map_err(fail)?;
+        check_zlib_blocks(&header, &blocks, budget).map_err(fail)?;
+    }
+    Ok(())
+}
+
+/// The block header words (`[nb, nu, np, nc_1, ..., nc_nb]`) and the compressed bytes
+/// after them of a raw appended array starting at `array`, `word` bytes a header word.
+fn raw_array(array: &[u8], word: usize) -> Result<(Vec<u64>, Cow<'_, [u8]>), String> {
+    let short = || "its compression header runs past the end of the file".to_string();
+    let words = |at: usize, n: usize| -> Result<Vec<u64>, String> {
+        let end = n
+            .checked_mul(word)
+            .and_then(|b| b.checked_add(at))
+            .filter(|&e| e <= array.len())
+            .ok_or_else(short)?;
+        Ok(header_words(&array[at..end], word))
+    };
+    let blocks = words(0, 1)?[0];
+    // Every block needs a compressed size in the header.
+    if blocks > (array.len() / word) as u64 {
+        return Err(format!(
+            "its header claims {blocks} compressed blocks, more than the file holds"
+        ));
+    }
+    let header = words(0, 3 + blocks as usize)?;
+    Ok((
+        header,
+        Cow::Borrowed(&array[(3 + blocks as usize) * word..]),
+    ))
+}
+
+/// As [`raw_array`] for base64 appended data, laid out as VTK writes it and vtkio reads
+/// it: the header encoded on its own, then the compressed blocks encoded together.
+fn base64_array(array: &[u8], word: usize) -> Result<(Vec<u64>, Cow<'static, [u8]>), String> {
+    let chars = |bytes: u64| bytes.div_ceil(3).saturating_mul(4);
+    let decode = |from: u64, bytes: u64, what: &str| -> Result<Vec<u8>, String> {
+        let end = from.saturating_add(chars(bytes));
+        if end > array.len() as u64 {
+            return Err(format!("its {what} runs past the end of the file"));
+        }
+        let config = base64::STANDARD.decode_allow_trailing_bits(true);
+        base64::decode_config(&array[from as usize..end as usize], config)
+            .map_err(|e| format!("its {what} is not base64: {e}"))
+    };
+    let w = word as u64;
+    let first = decode(0, w, "compression header")?;
+    let blocks = header_words(first.get(..word).unwrap_or_default(), word)
+        .first()
+        .copied()
+        .ok_or("its compression header is empty")?;
+    // Every block needs a compressed size in the header: 4/3 characters a byte.
+    if blocks > array.len() as u64 / w {
+        return Err(format!(
+            "its header claims {blocks} compressed blocks, more than the file holds"
+        ));
+    }
+    let header_bytes = (3 + blocks) * w;
+    let decoded = decode(0, header_bytes, "compression header")?;
+    let header = header_words(&decoded[..header_bytes as usize], word);
+    let compressed = header[3..].iter().fold(0u64, |a, &n| a.saturating_add(n));
+    let data = decode(chars(header_bytes), compressed, "compressed data")?;
+    Ok((header, Cow::Owned(data)))
+}
+
+/// Little-endian header words of `word` bytes.
+fn header_words(bytes: &[u8], word: usize) -> Vec<u64> {
+    bytes
+        .chunks_exact(word)
+        .map(|b| match word {
+            8 => u64::from_le_bytes(b.try_into().expect("8 bytes")),
+            _ => u32::from_le_bytes(b.try_into().expect("4 bytes")) as u64,
+        })
+        .collect()
+}
+
+/// The checks of one array's zlib blocks (module docs): `header` is `[nb, nu, np, nc_1,
+/// ..., nc_nb]`, `data` the compressed blocks one after the other.
+fn check_zlib_blocks(header: &[u64], data: &[u8], budget: u64) -> Result<(), String> {
+    let (blocks, block, last) = (header[0], header[1], header[2]);
+    let claimed_total = match blocks {
+        0 => 0,
+        n => (n - 1)
+            .saturating_mul(block)
+            .saturating_add(if last > 0 { last } else { block }),
+    };
+    if claimed_total > budget {
+        return Err(format!(
+            "its header claims {claimed_total} bytes, more than the declared points and \
+             cells need ({budget})"
+        ));
+    }
+    let (mut at, mut compressed_total) = (0usize, 0u64);
+    for (k, &size) in header[3..].iter().enumerate() {
+        let end = usize::try_from(size)
+            .ok()
+            .and_then(|s| at.checked_add(s))
+            .filter(|&e| e <= data.len())
+            .ok_or_else(|| format!("block {k} runs past the end of the file"))?;
+        compressed_total += size;
+        let claim = if k + 1 == blocks as usize && last > 0 {
+            last
+        } else {
+            block
         };
-        if claimed_total > budget {
-            return Err(fail(format!(
-                "its header claims {claimed_total} bytes, more than the declared points and \
-                 cells need ({budget})"
-            )));
+        if claim > size.saturating_mul(ZLIB_MAX_RATIO).saturating_add(64) {
+            return Err(format!(
+                "block {k} claims {claim} bytes from {size} compressed, more than zlib can \
+                 inflate"
+            ));
         }
-        let mut compressed_total = 0u64;
-        for k in 0..blocks as usize {
-            let size = header(3 + k).ok_or_else(short)? as usize;
-            let end = at
-                .checked_add(size)
-                .filter(|&e| e <= data.len())
-                .ok_or_else(|| fail(format!("block {k} runs past the end of the file")))?;
-            compressed_total += size as u64;
-            let claim = if k + 1 == blocks as usize && last > 0 {
-                last
-            } else {
-                block
-            };
-            if claim
-                > (size as u64)
-                    .saturating_mul(ZLIB_MAX_RATIO)
-                    .saturating_add(64)
-            {
-                return Err(fail(format!(
-                    "block {k} claims {claim} bytes from {size} compressed, more than zlib \
-                     can inflate"
-                )));
-            }
-            // Inflate with a cap one byte past the claim.
-            use std::io::Read;
-            let inflated = std::io::copy(
-                &mut flate2::read::ZlibDecoder::new(&data[at..end]).take(claim + 1),
-                &mut std::io::sink(),
-            )
-            .map_err(|e| fail(format!("block {k} does not inflate: {e}")))?;
-            if inflated > claim {
-                return Err(fail(format!(
-                    "block {k} inflates to more than the {claim} bytes its header claims"
-                )));
-            }
-            at = end;
+        // Inflate with a cap one byte past the claim.
+        use std::io::Read;
+        let inflated = std::io::copy(
+            &mut flate2::read::ZlibDecoder::new(&data[at..end]).take(claim + 1),
+            &mut std::io::sink(),
+        )
+        .map_err(|e| format!("block {k} does not inflate: {e}"))?;
+        if inflated > claim {
+            return Err(format!(
+                "block {k} inflates to more than the {claim} bytes its header claims"
+            ));
         }
-        if claimed_total
-            > compressed_total
-                .saturating_mul(ZLIB_MAX_RATIO)
-                .saturating_add(64)
-        {
-            return Err(fail(format!(
-                "its header claims {claimed_total} bytes from {compressed_total} compressed"
-            )));
-        }
+        at = end;
+    }
+    if claimed_total
+        > compressed_total
+            .saturating_mul(ZLIB_MAX_RATIO)
+            .saturating_add(64)
+    {
+        return Err(format!(
+            "its header claims {claimed_total} bytes from {compressed_total} compressed"
+        ));
     }
     Ok(())
 }
