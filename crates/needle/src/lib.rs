@@ -36,6 +36,7 @@ pub mod needle;
 pub mod node_editor;
 mod nodes;
 pub mod puncture;
+pub mod rod;
 pub mod script;
 pub mod sheath;
 pub mod simulation;
