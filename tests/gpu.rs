@@ -727,3 +727,44 @@ fn gpu_matches_cpu_with_two_materials() {
         );
     }
 }
+
+/// The GPU's divergence guard (`Backend::guard`): while nothing is flagged it reads one
+/// word back instead of every position and velocity, and when something is (a node made
+/// too fast, or not finite) its error is the one the full check gives, node and all.
+#[test]
+fn the_gpu_guard_reads_a_flag_and_names_what_the_full_check_names() {
+    use needlesim::core::backend::check_bounded;
+    let scene = cube_scene(Material::mass_spring(20.0), 639, 20.0, [1.3, 1.0, 1.0]);
+    let tissue = Tissue::from_scene(&scene).unwrap();
+    let Some(mut g) = gpu(&tissue) else { return };
+    g.set_n_active(tissue.state.n_active).unwrap();
+    let bound = 100.0;
+    // The first call with a bound checks everything (the steps before it were watched
+    // against no bound): a full read, two readbacks here (positions, then velocities).
+    g.step(50);
+    g.guard(bound).unwrap();
+    let before = g.readbacks();
+    g.step(50);
+    g.guard(bound).unwrap();
+    assert_eq!(g.readbacks() - before, 1, "a sound run reads the flag only");
+    // A free node thrown far faster than the bound: flagged by the integration, and the
+    // guard's error is the full check's.
+    let node = 300;
+    let mut v = [[0.0f32; 4]];
+    g.read(NodeField::Velocity, node..node + 1, &mut v).unwrap();
+    v[0][1] = 5e3;
+    g.write(NodeField::Velocity, node, &v).unwrap();
+    g.step(1);
+    let full = check_bounded(&mut g, bound).unwrap_err().to_string();
+    let guarded = g.guard(bound).unwrap_err().to_string();
+    assert_eq!(guarded, full);
+    assert!(guarded.contains("100 m/s"), "{guarded}");
+    // A non-finite velocity: the same.
+    v[0][1] = f32::NAN;
+    g.write(NodeField::Velocity, node, &v).unwrap();
+    g.step(1);
+    let full = check_bounded(&mut g, bound).unwrap_err().to_string();
+    let guarded = g.guard(bound).unwrap_err().to_string();
+    assert_eq!(guarded, full);
+    assert!(guarded.contains("non-finite"), "{guarded}");
+}

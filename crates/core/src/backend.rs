@@ -183,6 +183,15 @@ pub trait Backend: Send {
     fn check_finite(&mut self) -> Result<(), SimError> {
         check_bounded(self, f64::INFINITY)
     }
+    /// The divergence guard of the stepper, every `physics.check_every` steps: the same
+    /// error as [`check_bounded`] for the state now. The default reads every position and
+    /// velocity back; a backend that watches the integration itself (the GPU backend
+    /// flags a non-finite or too fast node as it integrates) reads them only when
+    /// something was flagged since the last call, so the error, when there is one, is
+    /// the same.
+    fn guard(&mut self, max_speed: f64) -> Result<(), SimError> {
+        check_bounded(self, max_speed)
+    }
 }
 
 /// Checks positions and velocities of the active nodes: an error names the first

@@ -7,7 +7,7 @@
 //! prescribed motion the steps between two guards go to the backend as one batch (the GPU
 //! backend queues a batch without waiting).
 
-use crate::backend::{check_arrays, check_bounded, Backend};
+use crate::backend::{check_arrays, Backend};
 use crate::boundary::{Boundary, Reaction};
 use crate::error::SimError;
 use crate::integrator::StepParams;
@@ -89,7 +89,7 @@ impl Stepper {
 
     /// The divergence guard, reading positions and velocities back from the backend.
     pub fn check(&self, backend: &mut dyn Backend) -> Result<(), SimError> {
-        check_bounded(backend, self.max_speed)
+        backend.guard(self.max_speed)
     }
 
     /// The divergence guard on positions and velocities already read back (an output

@@ -22,6 +22,8 @@ pub enum Binding {
     NeighbourWeight,
     /// A shape information array of the model.
     Model(ShapeArray),
+    /// The divergence guard's flag (one `u32`, set by the integration).
+    Guard,
 }
 
 /// The simulation's buffers, apart from the kernels that use them.
@@ -37,6 +39,9 @@ pub struct Buffers {
     /// The model's arrays (those of `ShapeInfo::bytes`).
     pub(crate) model: Vec<(ShapeArray, wgpu::Buffer)>,
     pub(crate) readback: wgpu::Buffer,
+    /// The divergence guard's flag: nonzero once the integration met a non-finite node
+    /// or one faster than `Params::max_speed_sq` (16 bytes; the first word is the flag).
+    pub(crate) guard: wgpu::Buffer,
 }
 
 impl Buffers {
@@ -51,6 +56,7 @@ impl Buffers {
             Binding::PositionRemainders => &self.position_remainders,
             Binding::NeighbourIndex => &self.nb_index,
             Binding::NeighbourWeight => &self.nb_weight,
+            Binding::Guard => &self.guard,
             Binding::Model(array) => {
                 let found = self.model.iter().find(|(a, _)| *a == array);
                 &found.expect("the passes bind only their model's arrays").1

@@ -126,7 +126,8 @@ impl Kernel {
 }
 
 /// `integrate.wgsl`: symplectic Euler with damping and fixed nodes, positions summed with
-/// their remainders (the GPU twin of [`needlesim_core::integrator::integrate_node`]).
+/// their remainders (the GPU twin of [`needlesim_core::integrator::integrate_node`]); it
+/// also raises the divergence guard's flag ([`crate::GpuBackend`]'s `Backend::guard`).
 pub const INTEGRATE_NODE: KernelSpec = KernelSpec {
     name: "integrate",
     sources: &[COMMON, INTEGRATE],
@@ -137,5 +138,6 @@ pub const INTEGRATE_NODE: KernelSpec = KernelSpec {
         (2, Binding::Velocities),
         (3, Binding::Forces),
         (4, Binding::PositionRemainders),
+        (5, Binding::Guard),
     ],
 };

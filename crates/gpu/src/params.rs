@@ -42,8 +42,9 @@ pub struct Params {
     pub visco_terms: u32,
     /// `g_inf = 1 - sum g_i` of the Prony series.
     pub visco_g_inf: f32,
-    /// Padding to the next 16-byte boundary.
-    pub pad: f32,
+    /// Square of the divergence guard's speed bound, (m/s)^2 (`Backend::guard`): the
+    /// integration flags a free node faster than this (infinite: only non-finite ones).
+    pub max_speed_sq: f32,
     /// `exp(-dt / tau_i)` of each Prony term.
     pub visco_a: [f32; 4],
     /// `g_i (tau_i / dt) (1 - a_i)` of each Prony term.
@@ -91,6 +92,7 @@ mod tests {
             ("slot_stride", offset_of!(Params, slot_stride)),
             ("visco_terms", offset_of!(Params, visco_terms)),
             ("visco_g_inf", offset_of!(Params, visco_g_inf)),
+            ("max_speed_sq", offset_of!(Params, max_speed_sq)),
             ("visco_a", offset_of!(Params, visco_a)),
             ("visco_b", offset_of!(Params, visco_b)),
         ];
