@@ -19,7 +19,8 @@ struct Params {
     slot_stride: u32,
     visco_terms: u32,
     visco_g_inf: f32,
-    pad1: f32,
+    // Square of the divergence guard's speed bound (integrate.wgsl).
+    max_speed_sq: f32,
     visco_a: vec4<f32>,
     visco_b: vec4<f32>,
 }

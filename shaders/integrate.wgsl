@@ -8,6 +8,17 @@
 @group(0) @binding(2) var<storage, read_write> velocities: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> forces: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> remainders: array<vec4<f32>>;
+// The divergence guard (backend.rs, `Backend::guard`): word 0 is set when a free node's new
+// position or velocity is not finite or its speed exceeds sqrt(params.max_speed_sq). Only
+// such a node writes it, so the atomic costs nothing while the run is sound.
+@group(0) @binding(5) var<storage, read_write> guard: array<atomic<u32>>;
+
+// Whether every component is finite, from the exponent bits (a compiler may assume that
+// no float is NaN and drop a comparison of a value with itself).
+fn finite3(v: vec3<f32>) -> bool {
+    let e = bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u);
+    return all(e != vec3<u32>(0x7f800000u));
+}
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -34,4 +45,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let e = (x.xyz - (s - dd)) + (d - dd);
     positions[i] = vec4<f32>(s, x.w);
     remainders[i] = vec4<f32>(e, 0.0);
+    if !(finite3(v) && finite3(s)) || dot(v, v) > params.max_speed_sq {
+        atomicOr(&guard[0], 1u);
+    }
 }
