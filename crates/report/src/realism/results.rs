@@ -15,8 +15,10 @@ pub struct DentSlope {
     pub dent: f64,
     /// Force when it punctured, N.
     pub peak: f64,
-    /// Slope of the axial force against depth after the puncture, N/m.
-    pub slope: f64,
+    /// Slope of the axial force against depth after the puncture, N/m; `None` when the
+    /// insertion ends before the fit has rows enough (more than 10 from two spacings past
+    /// the puncture: a short run at a coarse spacing).
+    pub slope: Option<f64>,
     /// The run's force against depth (mm, N) for the plots.
     pub curve: Vec<(f64, f64)>,
 }

@@ -13,30 +13,31 @@ fn pct(x: Option<f64>) -> String {
 pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
     let mut csv = String::from("study,case,quantity,value\n");
     for (name, nodes, a) in &r.scenes {
-        let mut row = |q: &str, v: f64| writeln!(csv, "scene,{name},{q},{v:e}").unwrap();
-        row("nodes", *nodes as f64);
-        row("jumps", a.jumps as f64);
-        row("buzz_max_percent", a.buzz_max);
-        row("buzz_max_before_last_20ms_percent", a.buzz_max_body);
-        row("buzz_share_over_2_percent", a.buzz_share);
-        row("median_step_held_percent", a.held.unwrap_or(f64::NAN));
-        row("median_step_still_percent", a.still.unwrap_or(f64::NAN));
+        // A quantity the run has none of (no hold, no reversal) is an empty value, which
+        // CSV readers take as missing, not NaN.
+        let mut row = |q: &str, v: Option<f64>| {
+            let v = v.map_or(String::new(), |v| format!("{v:e}"));
+            writeln!(csv, "scene,{name},{q},{v}").unwrap()
+        };
+        row("nodes", Some(*nodes as f64));
+        row("jumps", Some(a.jumps as f64));
+        row("buzz_max_percent", Some(a.buzz_max));
+        row("buzz_max_before_last_20ms_percent", Some(a.buzz_max_body));
+        row("buzz_share_over_2_percent", Some(a.buzz_share));
+        row("median_step_held_percent", a.held);
+        row("median_step_still_percent", a.still);
+        row("median_step_rotating_percent", a.rotating);
+        row("median_step_moving_percent", a.moving);
         row(
-            "median_step_rotating_percent",
-            a.rotating.unwrap_or(f64::NAN),
+            "negative_while_advancing_rows",
+            Some(a.negative_advancing as f64),
         );
-        row("median_step_moving_percent", a.moving.unwrap_or(f64::NAN));
-        row("negative_while_advancing_rows", a.negative_advancing as f64);
-        row("reversal_max_step_percent", a.reversal.unwrap_or(f64::NAN));
+        row("reversal_max_step_percent", a.reversal);
     }
     if let Some((a, c)) = &r.friction_off {
         writeln!(csv, "friction_off,liver,cutting_n,{c:e}").unwrap();
-        writeln!(
-            csv,
-            "friction_off,liver,max_deviation_percent,{:e}",
-            a.flatness.unwrap_or(f64::NAN)
-        )
-        .unwrap();
+        let flat = a.flatness.map_or(String::new(), |x| format!("{x:e}"));
+        writeln!(csv, "friction_off,liver,max_deviation_percent,{flat}").unwrap();
     }
     if let Some(e) = &r.events {
         for (q, x) in [
@@ -52,13 +53,15 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
     for (study, v) in [("spacing", &r.spacing), ("model", &r.models)] {
         for d in v {
             for (q, x) in [
-                ("nodes", d.nodes as f64),
-                ("spacing_m", d.spacing),
-                ("dent_m", d.dent),
-                ("peak_n", d.peak),
+                ("nodes", Some(d.nodes as f64)),
+                ("spacing_m", Some(d.spacing)),
+                ("dent_m", Some(d.dent)),
+                ("peak_n", Some(d.peak)),
                 ("slope_n_per_m", d.slope),
             ] {
-                writeln!(csv, "{study},{},{q},{x:e}", d.label).unwrap();
+                // No slope is an empty value (missing to a CSV reader), not NaN.
+                let x = x.map_or(String::new(), |x| format!("{x:e}"));
+                writeln!(csv, "{study},{},{q},{x}", d.label).unwrap();
             }
         }
     }
@@ -192,22 +195,31 @@ pub fn markdown(md: &mut String, r: &Realism) {
         for d in v.iter() {
             writeln!(
                 md,
-                "| {} | {} | {:.2} | {:.2} | {:.3} | {:.1} |",
+                "| {} | {} | {:.2} | {:.2} | {:.3} | {} |",
                 d.label,
                 d.nodes,
                 1e3 * d.spacing,
                 1e3 * d.dent,
                 d.peak,
-                d.slope
+                d.slope.map_or("n/a".into(), |s| format!("{s:.1}"))
             )
             .unwrap();
         }
         if !v.is_empty() {
             writeln!(
                 md,
-                "\nSpread (max - min over mean): dent {:.1}%, slope {:.1}%.",
+                "\nSpread (max - min over mean): dent {:.1}%, slope {}.",
                 spread(v.iter().map(|d| d.dent)),
-                spread(v.iter().map(|d| d.slope))
+                match v.iter().filter(|d| d.slope.is_some()).count() {
+                    n if n == v.len() =>
+                        format!("{:.1}%", spread(v.iter().filter_map(|d| d.slope))),
+                    n if n >= 2 => format!(
+                        "{:.1}% over the {n} cases with a slope (n/a: the insertion ends within \
+                         two spacings of the puncture)",
+                        spread(v.iter().filter_map(|d| d.slope))
+                    ),
+                    _ => "n/a (the insertion ends within two spacings of the puncture)".into(),
+                }
             )
             .unwrap();
         }
