@@ -747,24 +747,18 @@ fn the_gpu_guard_reads_a_flag_and_names_what_the_full_check_names() {
     g.step(50);
     g.guard(bound).unwrap();
     assert_eq!(g.readbacks() - before, 1, "a sound run reads the flag only");
-    // A free node thrown far faster than the bound: flagged by the integration, and the
-    // guard's error is the full check's.
+    // A free node thrown far faster than the bound, then one given a non-finite
+    // velocity: flagged by the integration, and the guard's error is the full check's.
     let node = 300;
-    let mut v = [[0.0f32; 4]];
-    g.read(NodeField::Velocity, node..node + 1, &mut v).unwrap();
-    v[0][1] = 5e3;
-    g.write(NodeField::Velocity, node, &v).unwrap();
-    g.step(1);
-    let full = check_bounded(&mut g, bound).unwrap_err().to_string();
-    let guarded = g.guard(bound).unwrap_err().to_string();
-    assert_eq!(guarded, full);
-    assert!(guarded.contains("100 m/s"), "{guarded}");
-    // A non-finite velocity: the same.
-    v[0][1] = f32::NAN;
-    g.write(NodeField::Velocity, node, &v).unwrap();
-    g.step(1);
-    let full = check_bounded(&mut g, bound).unwrap_err().to_string();
-    let guarded = g.guard(bound).unwrap_err().to_string();
-    assert_eq!(guarded, full);
-    assert!(guarded.contains("non-finite"), "{guarded}");
+    for (speed, cause) in [(5e3f32, "100 m/s"), (f32::NAN, "non-finite")] {
+        let mut v = [[0.0f32; 4]];
+        g.read(NodeField::Velocity, node..node + 1, &mut v).unwrap();
+        v[0][1] = speed;
+        g.write(NodeField::Velocity, node, &v).unwrap();
+        g.step(1);
+        let full = check_bounded(&mut g, bound).unwrap_err().to_string();
+        let guarded = g.guard(bound).unwrap_err().to_string();
+        assert_eq!(guarded, full);
+        assert!(guarded.contains(cause), "{guarded}");
+    }
 }
