@@ -29,7 +29,15 @@ at once. Results are typed: ``sim.puncture_state`` is a ``PunctureState`` (a str
 installed (``pip install needlesim[pyvista]``).
 """
 
-from ._needlesim import HapticLoop, SineDevice, Simulation, adapter, models, __version__
+from ._needlesim import (
+    HapticLoop,
+    SineDevice,
+    Simulation,
+    adapter,
+    flexible_needle,
+    models,
+    __version__,
+)
 from ._fit import FitError, FitResult, fit
 from ._prony import PronyFit, fit_prony, relaxation
 from ._types import NeedleForce, NeedleHistory, PunctureState
@@ -58,6 +66,7 @@ __all__ = [
     "SweepResult",
     "adapter",
     "apply_overrides",
+    "flexible_needle",
     "fit",
     "fit_prony",
     "grid",

@@ -1,14 +1,22 @@
 """Type stubs of the native module (see needlesim.Simulation)."""
 
 from os import PathLike
-from typing import Any, Dict, List, Literal, Optional, Tuple, Union, final
+from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
 from ._types import NeedleForce, NeedleHistory, PunctureState
 
-__all__ = ["Simulation", "HapticLoop", "SineDevice", "adapter", "models", "__version__"]
+__all__ = [
+    "Simulation",
+    "HapticLoop",
+    "SineDevice",
+    "adapter",
+    "models",
+    "flexible_needle",
+    "__version__",
+]
 
 __version__: str
 
@@ -207,3 +215,23 @@ def models() -> List[Dict[str, Any]]:
     """The tissue models, from needlesim's registry: one dict per model with its TOML
     tag (``model = "<tag>"`` in ``[material]``), ``short_name``, ``label`` and
     ``structural_keys`` (the keys every ``[[region]]`` must share)."""
+
+def flexible_needle(
+    length: float,
+    outer_diameter: float,
+    inner_diameter: float = 0.0,
+    *,
+    young_modulus: float = 193e9,
+    poisson_ratio: float = 0.29,
+    segments: int = 20,
+    forces: Sequence[Tuple[float, float, float, float]] = ...,
+    moments: Sequence[Tuple[float, float, float, float]] = ...,
+    per_length: Tuple[float, float, float] = ...,
+) -> npt.NDArray[np.float64]:
+    """The centre line of a flexible needle clamped at the origin along +z, in
+    equilibrium under point forces and moments and a load per length: an (N + 2, 3)
+    array of the base, the N hinges and the tip (m). ``forces`` and ``moments`` are
+    sequences of ``(s, x, y, z)``: arc length from the base (m) and the vector (N, N m).
+    A chain of ``segments`` rigid elements (``needlesim::needle::rod``); 20 elements are
+    within 0.13% of the Euler-Bernoulli cantilever. ValueError names a bad parameter, a
+    load off the shaft, or a load the solve finds no equilibrium for."""
