@@ -89,7 +89,9 @@ pub enum RodError {
     #[error("invalid load on the flexible needle: {0}")]
     Load(String),
     /// The equilibrium iteration did not settle (a load far past the elastic range of
-    /// a tube this thin, or one that buckles it).
+    /// a tube this thin). The solve follows the branch that starts straight: an axial
+    /// compression above the buckling load with nothing across it returns the straight,
+    /// unstable, equilibrium, not a buckled one.
     #[error(
         "the flexible needle found no equilibrium within {MAX_ITERATIONS} iterations (last \
          relative change {change:.3e}): the loads bend it past what the solve follows"
