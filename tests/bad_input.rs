@@ -1,5 +1,7 @@
 //! Bad scene files and bad OBJ files give typed errors that name the problem.
 
+mod common;
+
 use needlesim::{GeometryError, Scene, SceneError, Tissue};
 use std::path::Path;
 
@@ -457,14 +459,7 @@ fn bad_needle_tables_name_the_key() {
 
 /// The unit octahedron's faces as corner coordinates (1-based OBJ indices above).
 fn octa_triangles(faces: &[&str]) -> Vec<[[f32; 3]; 3]> {
-    let v = [
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-    ];
+    let v = common::OCTAHEDRON_VERTICES;
     faces
         .iter()
         .map(|f| {

@@ -406,14 +406,9 @@ const OCTAHEDRON: [&str; 14] = [
 /// A closed shape's vertex and face lines: the octahedron, or a cube of quads.
 fn closed_shape() -> impl Strategy<Value = (Vec<[f64; 3]>, Vec<Vec<i64>>)> {
     let octahedron = (
-        vec![
-            [1.0, 0.0, 0.0],
-            [-1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, -1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 0.0, -1.0],
-        ],
+        common::OCTAHEDRON_VERTICES
+            .map(|p| p.map(f64::from))
+            .to_vec(),
         OCTAHEDRON[6..]
             .iter()
             .map(|f| f[2..].split(' ').map(|i| i.parse().unwrap()).collect())

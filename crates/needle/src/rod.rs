@@ -337,14 +337,21 @@ pub fn solve(
     let mut last_change = f64::INFINITY;
     for iteration in 1..=MAX_ITERATIONS {
         let (points, frames) = shape(spec, base, q0, &theta);
+        // Where each point load sits on the bent needle this iteration.
+        let at: Vec<DVec3> = loads
+            .points
+            .iter()
+            .map(|p| {
+                let (link, from, s) = link_of(p.s, spec);
+                points[link] + frames[link] * DVec3::Z * (s - from)
+            })
+            .collect();
         let mut next = Vec::with_capacity(n);
         for k in 0..n {
             let (sk, pk) = ((k as f64 + 0.5) * l, points[k + 1]);
             let mut m = DVec3::ZERO;
-            for p in loads.points.iter().filter(|p| p.s > sk) {
-                let (link, from, s) = link_of(p.s, spec);
-                let x = points[link] + frames[link] * DVec3::Z * (s - from);
-                m += (x - pk).cross(p.force) + p.moment;
+            for (p, x) in loads.points.iter().zip(&at).filter(|(p, _)| p.s > sk) {
+                m += (*x - pk).cross(p.force) + p.moment;
             }
             if loads.per_length != DVec3::ZERO {
                 for j in k + 1..=n {

@@ -39,25 +39,18 @@ pub fn flexible_needle<'py>(
         poisson_ratio,
         segments,
     };
-    let point = |(s, x, y, z): (f64, f64, f64, f64), force: bool| PointLoad {
+    let forces = forces.into_iter().map(|(s, x, y, z)| PointLoad {
         s,
-        force: if force {
-            DVec3::new(x, y, z)
-        } else {
-            DVec3::ZERO
-        },
-        moment: if force {
-            DVec3::ZERO
-        } else {
-            DVec3::new(x, y, z)
-        },
-    };
+        force: DVec3::new(x, y, z),
+        moment: DVec3::ZERO,
+    });
+    let moments = moments.into_iter().map(|(s, x, y, z)| PointLoad {
+        s,
+        force: DVec3::ZERO,
+        moment: DVec3::new(x, y, z),
+    });
     let loads = Loads {
-        points: forces
-            .into_iter()
-            .map(|f| point(f, true))
-            .chain(moments.into_iter().map(|m| point(m, false)))
-            .collect(),
+        points: forces.chain(moments).collect(),
         per_length: DVec3::new(per_length.0, per_length.1, per_length.2),
     };
     let shape = py
