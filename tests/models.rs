@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use needlesim::core::scene::DebunneParams;
+use needlesim::core::scene::{DebunneParams, PointBasedParams};
 use needlesim::{Backend, Material, NodeField, Threading};
 
 /// Largest force at rest relative to the largest force of the same cube stretched by 30%.
@@ -302,4 +302,65 @@ fn a_single_node_stiffens_with_hourglass_control_towards_the_fem_diagonal() {
     eprintln!("node stiffness / Q1 FEM diagonal: alpha 0.1 {soft:.3}, alpha 4 {stiff:.3}");
     assert!(soft < 0.2, "{soft}");
     assert!((0.4..1.0).contains(&stiff), "{stiff}");
+}
+
+/// `Backend::compute_forces_on` (the needle's settle asks for a few nodes' forces): on
+/// the CPU it evaluates only those nodes and what their forces read, and must give each
+/// of them exactly the force of a whole-tissue evaluation, for every model (the two-pass
+/// models read their neighbours' first pass; shape matching's cluster forces their
+/// neighbours' frames; viscoelastic Debunne its relaxation state).
+#[test]
+fn local_force_evaluation_gives_the_whole_evaluations_forces() {
+    use needlesim::core::models::viscoelastic::{Prony, PronyTerm};
+    let visco = Prony::new(&[PronyTerm { g: 0.3, tau: 0.05 }]);
+    let mut models = all_models();
+    models.push((
+        "deb-corotated-visco",
+        Material::DebunneMeshfree(
+            DebunneParams::new(1e4, 0.3)
+                .with_corotated(true)
+                .with_viscoelastic(visco),
+        ),
+    ));
+    models.push((
+        "pba-visco",
+        Material::PointBased(PointBasedParams::new(1e4, 0.3).with_viscoelastic(visco)),
+    ));
+    for (label, material) in models {
+        let scene = cube_scene(material, 639, 5.0, [1.3, 1.0, 1.0]);
+        let (mut whole, mut local) = (
+            backend(&scene, Threading::Single),
+            backend(&scene, Threading::Single),
+        );
+        // Some steps first, so that rotations, warm starts and relaxation state are not
+        // at their initial values (the same on both).
+        whole.step(30);
+        local.step(30);
+        let n = whole.n_active();
+        // A corner, an interior node, a face node and the last one, unsorted.
+        let subset = [(n - 1) as u32, 0, 333, 17, 333];
+        whole.compute_forces();
+        local
+            .write(NodeField::Force, 0, &vec![[f32::NAN; 4]; n])
+            .unwrap();
+        local.compute_forces_on(&subset);
+        let (a, b) = (
+            read(&mut whole, NodeField::Force),
+            read(&mut local, NodeField::Force),
+        );
+        for &i in &subset {
+            let i = i as usize;
+            assert!(
+                max_norm(&a[i..i + 1]) > 0.0,
+                "{label}: node {i} carries no force"
+            );
+            assert_eq!(
+                a[i].map(f32::to_bits),
+                b[i].map(f32::to_bits),
+                "{label}: node {i}"
+            );
+        }
+        // Nodes outside the subset are not evaluated (they keep what was written).
+        assert!(b[100][0].is_nan(), "{label}: node 100 was evaluated");
+    }
 }

@@ -76,6 +76,17 @@ pub trait Backend: Send {
     fn set_n_active(&mut self, n: usize) -> Result<(), SimError>;
     /// Evaluates the elastic forces of all active nodes.
     fn compute_forces(&mut self);
+    /// Evaluates the elastic forces of at least the listed active nodes (ascending, no
+    /// repeats); the forces of the other nodes may be left stale until the next
+    /// [`Backend::compute_forces`], and model state that a force pass writes for the next
+    /// step (the viscoelastic update) may be left partly written, so call
+    /// `compute_forces` before integrating. The needle's settle asks for the forces on
+    /// the few nodes it places, several times per edit. The CPU backend evaluates only
+    /// those nodes and the neighbours their forces read; the default evaluates every node.
+    fn compute_forces_on(&mut self, nodes: &[u32]) {
+        let _ = nodes;
+        self.compute_forces();
+    }
     /// Advances positions and velocities by one time step using the current forces.
     fn integrate(&mut self);
     /// Runs `n` steps of force evaluation and integration.

@@ -176,10 +176,30 @@ impl Backend for CpuBackend {
 
     fn compute_forces(&mut self) {
         let n = self.tissue.state.n_active;
-        let threads = Threads {
-            pool: self.pool.as_ref(),
-            parallel: self.parallel && n >= PARALLEL_MIN_NODES,
-        };
+        let threads = Threads::all(self.pool.as_ref(), self.parallel && n >= PARALLEL_MIN_NODES);
+        let t = &mut self.tissue;
+        let s = &mut t.state;
+        t.shape.cpu_forces(
+            &s.positions,
+            &s.velocities,
+            &t.neighbours,
+            n,
+            threads,
+            t.step.dt,
+            &mut s.forces,
+        );
+    }
+
+    fn compute_forces_on(&mut self, nodes: &[u32]) {
+        let n = self.tissue.state.n_active;
+        let mut subset: Vec<u32> = nodes
+            .iter()
+            .copied()
+            .filter(|&i| (i as usize) < n)
+            .collect();
+        subset.sort_unstable();
+        subset.dedup();
+        let threads = Threads::all(self.pool.as_ref(), false).with_subset(Some(&subset));
         let t = &mut self.tissue;
         let s = &mut t.state;
         t.shape.cpu_forces(
@@ -195,10 +215,7 @@ impl Backend for CpuBackend {
 
     fn integrate(&mut self) {
         let n = self.tissue.state.n_active;
-        let threads = Threads {
-            pool: self.pool.as_ref(),
-            parallel: self.parallel && n >= PARALLEL_MIN_NODES,
-        };
+        let threads = Threads::all(self.pool.as_ref(), self.parallel && n >= PARALLEL_MIN_NODES);
         let t = &mut self.tissue;
         let params = t.step;
         let s = &mut t.state;

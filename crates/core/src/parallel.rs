@@ -1,7 +1,9 @@
 //! How the CPU kernels run over the nodes: serially, or in parallel chunks on a rayon pool.
 //!
 //! Each node's force and update depend only on the previous state, so the chunking does not
-//! change a single bit of the results; [`Threads`] only decides where the work runs.
+//! change a single bit of the results; [`Threads`] only decides where the work runs, and,
+//! with a [`Threads::subset`], on which nodes (a local force evaluation: the needle's
+//! settle asks for the forces on the few nodes it places, `Backend::compute_forces_on`).
 
 use rayon::prelude::*;
 
@@ -16,9 +18,48 @@ pub struct Threads<'a> {
     pub pool: Option<&'a rayon::ThreadPool>,
     /// Whether to run in parallel at all.
     pub parallel: bool,
+    /// Only these nodes (ascending, each below the slices' length), one at a time on the
+    /// calling thread; the other entries are left as they were. `None`: every node.
+    pub subset: Option<&'a [u32]>,
 }
 
 impl<'a> Threads<'a> {
+    /// Every node, serially or in parallel.
+    pub fn all(pool: Option<&'a rayon::ThreadPool>, parallel: bool) -> Threads<'a> {
+        Threads {
+            pool,
+            parallel,
+            subset: None,
+        }
+    }
+
+    /// The same pool restricted to `subset` (`None`: every node).
+    pub fn with_subset<'b>(self, subset: Option<&'b [u32]>) -> Threads<'b>
+    where
+        'a: 'b,
+    {
+        Threads {
+            pool: self.pool,
+            parallel: self.parallel,
+            subset,
+        }
+    }
+
+    /// With a subset: the subset and every neighbour of its nodes below `n`, ascending
+    /// (the nodes whose per-node first pass a two-pass force on the subset reads).
+    /// `None` without a subset.
+    pub fn one_ring(&self, nb: &crate::neighbours::Neighbours, n: usize) -> Option<Vec<u32>> {
+        let subset = self.subset?;
+        let mut ring: Vec<u32> = subset.to_vec();
+        for &i in subset {
+            ring.extend(nb.live(i as usize).map(|(_, j, _)| j as u32));
+        }
+        ring.retain(|&j| (j as usize) < n);
+        ring.sort_unstable();
+        ring.dedup();
+        Some(ring)
+    }
+
     /// Runs `f(first, &mut a[chunk], &mut b[chunk])` over consecutive chunks of [`CHUNK`]
     /// nodes.
     pub fn for_each_chunk<A: Send, B: Send>(
@@ -27,6 +68,13 @@ impl<'a> Threads<'a> {
         b: &mut [B],
         f: impl Fn(usize, &mut [A], &mut [B]) + Sync + Send,
     ) {
+        if let Some(subset) = self.subset {
+            for &i in subset {
+                let i = i as usize;
+                f(i, &mut a[i..i + 1], &mut b[i..i + 1]);
+            }
+            return;
+        }
         if !self.parallel {
             for (c, (ca, cb)) in a.chunks_mut(CHUNK).zip(b.chunks_mut(CHUNK)).enumerate() {
                 f(c * CHUNK, ca, cb);
@@ -78,6 +126,13 @@ impl<'a> Threads<'a> {
                 f(first + k, x, y, z);
             }
         };
+        if let Some(subset) = self.subset {
+            for &i in subset {
+                let i = i as usize;
+                chunk(i, &mut a[i..i + 1], &mut b[i..i + 1], &mut c[i..i + 1]);
+            }
+            return;
+        }
         if !self.parallel {
             let chunks = a
                 .chunks_mut(CHUNK)

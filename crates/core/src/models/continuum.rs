@@ -115,29 +115,30 @@ impl<L: ContinuumLaw> ModelState for ContinuumShape<L> {
             ..
         } = &mut self.continuum;
         let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
+        // A local evaluation's gather reads the first pass of its nodes' neighbours.
+        let ring = input.threads.one_ring(nb, n);
+        let threads = input.threads.with_subset(ring.as_deref());
         if visco.is_empty() {
-            input.threads.map_nodes(&mut first[..n], |i| {
+            threads.map_nodes(&mut first[..n], |i| {
                 let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
                 L::law_first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c)
             });
         } else {
             let coefficients = prony.coefficients(input.dt as f64);
             let prev = &visco[..];
-            input
-                .threads
-                .for_each_node(&mut first[..n], &mut visco_next[..n], |i, out, next| {
-                    let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
-                    let split = L::law_split(i, pos, rest, nb, &a_inv[i], &c);
-                    *out = ContinuumArrays::visco_first_pass(
-                        &split,
-                        &prev[i],
-                        next,
-                        &coefficients,
-                        &a_inv[i],
-                        rest[i][3],
-                        c.hourglass,
-                    );
-                });
+            threads.for_each_node(&mut first[..n], &mut visco_next[..n], |i, out, next| {
+                let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
+                let split = L::law_split(i, pos, rest, nb, &a_inv[i], &c);
+                *out = ContinuumArrays::visco_first_pass(
+                    &split,
+                    &prev[i],
+                    next,
+                    &coefficients,
+                    &a_inv[i],
+                    rest[i][3],
+                    c.hourglass,
+                );
+            });
         }
         self.continuum.gather_forces(input, forces);
     }

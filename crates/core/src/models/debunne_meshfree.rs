@@ -296,6 +296,9 @@ impl ModelState for Shape {
             ..
         } = &mut self.continuum;
         let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
+        // A local evaluation's gather reads the first pass of its nodes' neighbours.
+        let ring = threads.one_ring(nb, n);
+        let threads = threads.with_subset(ring.as_deref());
         match &mut self.corotation {
             None => threads.map_nodes(&mut first[..n], |i| {
                 let [lambda, mu, hg, _] = constants(i);
@@ -359,6 +362,8 @@ impl Shape {
             ..
         } = &mut self.continuum;
         let (rest, a_inv, prev) = (&rest_position[..], &inverse_moment[..], &visco[..]);
+        let ring = threads.one_ring(nb, n);
+        let threads = threads.with_subset(ring.as_deref());
         let coefficients = prony.coefficients(dt as f64);
         let split = |i: usize, r: Option<&Mat3>, lambda: f32, mu: f32| {
             let (j, trace) = super::mls::displacement_gradient(i, pos, rest, nb, &a_inv[i]);

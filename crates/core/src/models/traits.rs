@@ -160,7 +160,10 @@ pub struct ForceInput<'a> {
     pub node_material: Option<&'a [Vec4]>,
     /// Active nodes.
     pub n: usize,
-    /// Where the kernels run.
+    /// Where the kernels run, and with a [`Threads::subset`] on which nodes: a model
+    /// then has to get the force on each of those nodes right and may leave the others'
+    /// as they were (the two-pass models evaluate their first pass on the subset's one
+    /// ring, [`Threads::one_ring`]).
     pub threads: Threads<'a>,
     /// The time step in s (the viscoelastic update needs it).
     pub dt: f32,
@@ -195,7 +198,8 @@ pub trait ModelState {
         None
     }
 
-    /// The elastic (and damping) force on each of the first `input.n` nodes.
+    /// The elastic (and damping) force on each of the first `input.n` nodes (only on
+    /// `input.threads.subset` when it is set).
     fn cpu_forces(&mut self, input: &ForceInput, forces: &mut [Vec4]);
 
     /// Commits what the last force evaluation computed for the next step (the

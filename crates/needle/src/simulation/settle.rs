@@ -72,8 +72,12 @@ impl Simulation {
             .map(|k| DVec3::from(self.rest_of(self.state.nodes[k].index)))
             .collect();
         // The residual of every node: its elastic force less its target.
+        // Only these nodes' forces are needed: on the CPU a local evaluation (measured:
+        // 230 whole-tissue evaluations over 1,500 advancing steps had cost +14.5% of the
+        // step at 10,932 nodes).
+        let placed: Vec<u32> = (n0 + first..n0 + m).map(|i| i as u32).collect();
         let residual = |sim: &mut Self| -> Result<Vec<DVec3>, SimulationError> {
-            sim.backend.compute_forces();
+            sim.backend.compute_forces_on(&placed);
             let mut f = vec![[0.0f32; 4]; m - first];
             sim.backend
                 .read(NodeField::Force, n0 + first..n0 + m, &mut f)

@@ -308,7 +308,10 @@ impl ModelState for Shape {
                 });
             }
             Some(centre) => {
-                threads.for_each_node(&mut centre[..n], &mut rotation[..n], |i, c, q| {
+                // A local evaluation's forces read the frames of its nodes' neighbours.
+                let ring = threads.one_ring(nb, n);
+                let frames = threads.with_subset(ring.as_deref());
+                frames.for_each_node(&mut centre[..n], &mut rotation[..n], |i, c, q| {
                     let (c_i, q_i) =
                         cluster_frame(i, pos, rest, sv[i], nb, iters, Quat::from_array(*q));
                     *c = with_w(c_i, 0.0);
