@@ -8,7 +8,8 @@
 //!   threads and the GPU when an adapter is found, and `step_inserted/tissue-only/...`:
 //!   the same CPU backend stepped alone, so that the difference is the needle's cost; for
 //!   the GPU, the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed
-//!   first (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out). Before the held benches, the
+//!   first (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out; `NEEDLESIM_NEEDLE_MODEL` picks
+//!   another tissue model, [`needle_material`]). Before the held benches, the
 //!   CPU runs print the needle step while the needle advances against the tissue alone
 //!   ([`advancing_overhead`]).
 
@@ -90,15 +91,31 @@ fn inserted(nodes: usize) -> Scene {
     Scene::builder()
         .neighbours(16)
         .box_with_nodes([0.0; 3], [0.1; 3], nodes)
-        .material(Material::LocalShapeMatching(
-            ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
-        ))
+        .material(needle_material())
         .dt(2e-4)
         .damping(4.0)
         .fixed(NodeSet::above(Axis::X, 0.0995))
         .needle_toml(NEEDLE)
         .build()
         .unwrap()
+}
+
+/// The tissue of `step_inserted`: cluster shape matching, or the benches' model named by
+/// `NEEDLESIM_NEEDLE_MODEL` (`msm`, `deb-corotated`, `pba`, ... as in `common::MODELS`),
+/// so that the needle's overhead can be measured on every model.
+fn needle_material() -> Material {
+    match std::env::var("NEEDLESIM_NEEDLE_MODEL") {
+        Ok(name) => {
+            MODELS
+                .iter()
+                .find(|(label, _)| *label == name)
+                .unwrap_or_else(|| panic!("NEEDLESIM_NEEDLE_MODEL: no model {name:?}"))
+                .1
+        }
+        Err(_) => Material::LocalShapeMatching(
+            ShapeMatchingParams::new(20.0).with_forces(ShapeMatchingForces::Cluster),
+        ),
+    }
 }
 
 /// Steps over which the GPU's readbacks per needle step are counted.
