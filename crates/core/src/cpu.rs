@@ -103,6 +103,23 @@ pub struct CpuBackend {
 }
 
 impl CpuBackend {
+    /// The model's forces on every active node, or on `subset` (serially).
+    fn forces_with(&mut self, parallel: bool, subset: Option<&[u32]>) {
+        let n = self.tissue.state.n_active;
+        let threads = Threads::all(self.pool.as_ref(), parallel).with_subset(subset);
+        let t = &mut self.tissue;
+        let s = &mut t.state;
+        t.shape.cpu_forces(
+            &s.positions,
+            &s.velocities,
+            &t.neighbours,
+            n,
+            threads,
+            t.step.dt,
+            &mut s.forces,
+        );
+    }
+
     /// A backend that owns `tissue`.
     pub fn new(tissue: Tissue, threading: Threading) -> Result<CpuBackend, ThreadPoolError> {
         let (pool, parallel) = match threading {
@@ -176,18 +193,7 @@ impl Backend for CpuBackend {
 
     fn compute_forces(&mut self) {
         let n = self.tissue.state.n_active;
-        let threads = Threads::all(self.pool.as_ref(), self.parallel && n >= PARALLEL_MIN_NODES);
-        let t = &mut self.tissue;
-        let s = &mut t.state;
-        t.shape.cpu_forces(
-            &s.positions,
-            &s.velocities,
-            &t.neighbours,
-            n,
-            threads,
-            t.step.dt,
-            &mut s.forces,
-        );
+        self.forces_with(self.parallel && n >= PARALLEL_MIN_NODES, None);
     }
 
     fn compute_forces_on(&mut self, nodes: &[u32]) {
@@ -199,18 +205,8 @@ impl Backend for CpuBackend {
             .collect();
         subset.sort_unstable();
         subset.dedup();
-        let threads = Threads::all(self.pool.as_ref(), false).with_subset(Some(&subset));
-        let t = &mut self.tissue;
-        let s = &mut t.state;
-        t.shape.cpu_forces(
-            &s.positions,
-            &s.velocities,
-            &t.neighbours,
-            n,
-            threads,
-            t.step.dt,
-            &mut s.forces,
-        );
+        // A few nodes and their ring: not worth a parallel dispatch.
+        self.forces_with(false, Some(&subset));
     }
 
     fn integrate(&mut self) {
