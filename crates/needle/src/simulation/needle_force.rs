@@ -227,8 +227,23 @@ impl Simulation {
                         DVec3::from(now.tip()) - t * self.state.front.dent,
                     );
                     self.fit_around(tip, &around, &near).map(|fit| {
-                        let x0 = DVec3::from(self.rest_of(self.state.nodes[front].index))
-                            + fit.gradient * (tip - x_front);
+                        let from = |k: usize, x: DVec3| {
+                            DVec3::from(self.rest_of(self.state.nodes[k].index))
+                                + fit.gradient * (tip - x)
+                        };
+                        let mut x0 = from(front, x_front);
+                        // While the needle is pulled back over the front node, which hands
+                        // its length over to the node before it ([`Simulation::update_shares`])
+                        // and is removed when its share reaches 0, the material point moves
+                        // over to the one seen from the node before by the same share: the
+                        // tissue between them is sheared by the friction, so the two differ
+                        // (by 0.4 mm in the insert-extract scene), and taking the node before
+                        // only once the front node is gone made the tip's depth jump.
+                        let share = self.state.nodes[front].share;
+                        if sheathed && front + 1 == m && front > 0 && share < 1.0 {
+                            let prev = from(front - 1, xyz(p[front - 1]));
+                            x0 = share * x0 + (1.0 - share) * prev;
+                        }
                         (x0, self.region_near(x0, &around, self.state.region))
                     })
                 }

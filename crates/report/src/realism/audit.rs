@@ -18,6 +18,8 @@ pub struct Row {
     pub region: Option<u16>,
     /// Needle direction.
     pub direction: [f64; 3],
+    /// Depth of the tip's material point in the undeformed tissue, m (inside only).
+    pub tissue_depth: Option<f64>,
 }
 
 /// The rows of a simulation's history.
@@ -31,6 +33,7 @@ pub fn rows(sim: &Simulation) -> Vec<Row> {
             state: s.state,
             region: s.region,
             direction: s.direction,
+            tissue_depth: s.tissue_depth,
         })
         .collect()
 }
@@ -66,6 +69,10 @@ pub struct Audit {
     /// withdrawing, over the force at the reversal (floored at 10% of the largest), %
     /// (`None` without a reversal).
     pub reversal: Option<f64>,
+    /// Largest step of the tip's material depth between two withdrawing inside rows, mm
+    /// (issue 39: it should follow the needle, also across node removals; `None` without
+    /// such rows).
+    pub material_step: Option<f64>,
     /// With a cutting force given: the largest deviation from it over the inside,
     /// advancing rows not near a puncture, % (meaningful for a run without friction).
     pub flatness: Option<f64>,
@@ -218,6 +225,10 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
             last_dir = dir;
         }
     }
+    let material_step = (1..n)
+        .filter(|&i| inside[i - 1] && inside[i] && dd[i - 1] < -1e-9)
+        .filter_map(|i| Some(1e3 * (rows[i].tissue_depth? - rows[i - 1].tissue_depth?).abs()))
+        .reduce(f64::max);
     let flatness = cutting.and_then(|c| {
         let sel: Vec<usize> = (0..n)
             .filter(|&i| inside[i] && dd[i] > 1e-9 && !near[i])
@@ -241,6 +252,7 @@ pub fn audit(rows: &[Row], cutting: Option<f64>) -> Audit {
         moving: med(&moving),
         negative_advancing,
         reversal,
+        material_step,
         flatness,
     }
 }
@@ -257,6 +269,7 @@ mod tests {
             state: PunctureState::Inside,
             region: Some(0),
             direction: [1.0, 0.0, 0.0],
+            tissue_depth: Some(depth),
         }
     }
 
@@ -302,6 +315,15 @@ mod tests {
         assert!((r - 100.0 * 0.002 / 1.1).abs() < 0.01, "{r}");
         // Advancing at 1.0 then 1.1 N: 10% off the cutting force 1 N.
         assert!((a.flatness.unwrap() - 10.0).abs() < 1e-9);
+        // The material point follows the tip back, 1 um a step ...
+        let m = a.material_step.expect("withdrawing rows");
+        assert!((m - 1e-3).abs() < 1e-9, "{m}");
+        // ... until it jumps back by 0.5 mm at 1.5 s (an advancing step does not count).
+        for r in rows.iter_mut().filter(|r| r.time >= 1.5) {
+            r.tissue_depth = r.tissue_depth.map(|x| x + 5e-4);
+        }
+        let m = audit(&rows, None).material_step.unwrap();
+        assert!((m - 0.499).abs() < 1e-9, "{m}");
     }
 
     #[test]

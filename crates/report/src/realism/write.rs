@@ -33,6 +33,7 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
             Some(a.negative_advancing as f64),
         );
         row("reversal_max_step_percent", a.reversal);
+        row("material_point_max_step_withdrawing_mm", a.material_step);
     }
     if let Some((a, c)) = &r.friction_off {
         writeln!(csv, "friction_off,liver,cutting_n,{c:e}").unwrap();
@@ -135,20 +136,20 @@ pub fn markdown(md: &mut String, r: &Realism) {
     writeln!(md, "\n## Needle force realism\n").unwrap();
     writeln!(
         md,
-        "Figures of `shared/tools/force_audit.py` (jumps: steps changing by more than 5% of the local force, inside and not within 20 ms of a puncture; buzz: RMS above about 50 Hz over 20 ms over the local force; held/moving: median step change, the held rows split into the needle still and turning at constant depth; negative: rows advancing with F < 0; reversal: largest step within 50 ms after a reversal over the force there). The audit's zero padding reads a buzz of about 40% in the last 10 ms of a series that ends with a force on the needle: the buzz is given with and without the last 20 ms. {:.0} s on this machine.\n",
+        "Figures of `shared/tools/force_audit.py` (jumps: steps changing by more than 5% of the local force, inside and not within 20 ms of a puncture; buzz: RMS above about 50 Hz over 20 ms over the local force; held/moving: median step change, the held rows split into the needle still and turning at constant depth; negative: rows advancing with F < 0; reversal: largest step within 50 ms after a reversal over the force there; material point step: the largest step of the tip's depth in the undeformed tissue between two withdrawing rows, which should follow the needle's travel across node removals). The audit's zero padding reads a buzz of about 40% in the last 10 ms of a series that ends with a force on the needle: the buzz is given with and without the last 20 ms. {:.0} s on this machine.\n",
         r.seconds
     )
     .unwrap();
     writeln!(
         md,
-        "| scene | nodes | jumps | buzz max % (before last 20 ms) | rows buzz > 2% | held % (still / rotating) | moving % | negative | reversal % |"
+        "| scene | nodes | jumps | buzz max % (before last 20 ms) | rows buzz > 2% | held % (still / rotating) | moving % | negative | reversal % | material point step mm |"
     )
     .unwrap();
-    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|").unwrap();
+    writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|").unwrap();
     for (name, nodes, a) in &r.scenes {
         writeln!(
             md,
-            "| {name} | {nodes} | {} | {:.2} ({:.2}) | {:.2}% | {} ({} / {}) | {} | {} | {} |",
+            "| {name} | {nodes} | {} | {:.2} ({:.2}) | {:.2}% | {} ({} / {}) | {} | {} | {} | {} |",
             a.jumps,
             a.buzz_max,
             a.buzz_max_body,
@@ -158,7 +159,9 @@ pub fn markdown(md: &mut String, r: &Realism) {
             pct(a.rotating),
             pct(a.moving),
             a.negative_advancing,
-            pct(a.reversal)
+            pct(a.reversal),
+            a.material_step
+                .map_or("-".to_string(), |x| format!("{x:.3}"))
         )
         .unwrap();
     }
