@@ -76,8 +76,8 @@ pub trait Backend: Send {
     fn set_n_active(&mut self, n: usize) -> Result<(), SimError>;
     /// Evaluates the elastic forces of all active nodes.
     fn compute_forces(&mut self);
-    /// Evaluates the elastic forces of at least the listed active nodes (ascending, no
-    /// repeats); the forces of the other nodes may be left stale until the next
+    /// Evaluates the elastic forces of at least the listed active nodes (in any order;
+    /// inactive ones are ignored); the forces of the other nodes may be left stale until the next
     /// [`Backend::compute_forces`], and model state that a force pass writes for the next
     /// step (the viscoelastic update) may be left partly written, so call
     /// `compute_forces` before integrating. The needle's settle asks for the forces on
