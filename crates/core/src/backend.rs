@@ -7,6 +7,7 @@
 //! [`Backend::read_nodes`] gather several pieces into one.
 
 use crate::error::SimError;
+use crate::frame::PositionFrame;
 use crate::math::Vec4;
 use crate::models::ShapeArray;
 use std::ops::Range;
@@ -14,16 +15,30 @@ use std::ops::Range;
 /// A per-node vector array of the backend.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NodeField {
-    /// Positions (w = inverse mass).
+    /// Positions in world coordinates, rounded to f32 (w = inverse mass). The backend may
+    /// store them in a translated frame ([`Backend::position_frame`]); reads and writes
+    /// convert.
     Position,
     /// Velocities.
     Velocity,
     /// Elastic forces of the last force evaluation.
     Force,
-    /// The part of each position below f32 resolution that the integrator carries
-    /// (xyz in metres, w = 0; [`crate::integrator`]). Writing [`NodeField::Position`]
-    /// clears it for the nodes written: a written position is exact.
+    /// The part of each world position below the f32 [`NodeField::Position`] (xyz in
+    /// metres, w = 0): the integrator's carried rounding error ([`crate::integrator`])
+    /// plus, in a translated frame, what rounding the position to world f32 dropped
+    /// ([`crate::frame`]). Position plus remainder is the position to about 2^-48 of its
+    /// distance from the world's origin. Writing [`NodeField::Position`] clears it for the
+    /// nodes written (a written position is exact); a remainder written is added to the
+    /// position.
     PositionRemainder,
+    /// The positions as the backend stores them, in [`Backend::position_frame`] (the same
+    /// as [`NodeField::Position`] in the world frame); writing them leaves the remainders
+    /// alone. With [`NodeField::StoredRemainder`], what a checkpoint saves and restores
+    /// bit for bit.
+    StoredPosition,
+    /// The integrator's remainders as the backend stores them (the same as
+    /// [`NodeField::PositionRemainder`] in the world frame).
+    StoredRemainder,
 }
 
 /// The nodes one request of [`Backend::read_many`] reads: a range, or a list (in its
@@ -95,6 +110,13 @@ pub trait Backend: Send {
             self.compute_forces();
             self.integrate();
         }
+    }
+    /// The frame the backend stores positions in ([`crate::frame`]): the world's, or for
+    /// a body far from the origin, one translated to it. Reads and writes of
+    /// [`NodeField::Position`] and [`NodeField::PositionRemainder`] are in world
+    /// coordinates whatever it is. The default is the world frame.
+    fn position_frame(&self) -> PositionFrame {
+        PositionFrame::WORLD
     }
     /// Steps run since creation (or the count [`Backend::set_steps_taken`] restored).
     fn steps_taken(&self) -> u64;

@@ -4,6 +4,7 @@
 
 use crate::backend::{check_range, check_rows, check_shape_write, Backend, NodeField};
 use crate::error::SimError;
+use crate::frame::PositionFrame;
 use crate::integrator::integrate_node;
 use crate::math::Vec4;
 use crate::models::ShapeArray;
@@ -100,6 +101,8 @@ pub struct CpuBackend {
     pool: Option<rayon::ThreadPool>,
     parallel: bool,
     steps: u64,
+    /// The frame the tissue's positions are stored in ([`crate::frame`]).
+    frame: PositionFrame,
 }
 
 impl CpuBackend {
@@ -120,7 +123,7 @@ impl CpuBackend {
         );
     }
 
-    /// A backend that owns `tissue`.
+    /// A backend that owns `tissue` (positions in its frame, [`Tissue::frame`]).
     pub fn new(tissue: Tissue, threading: Threading) -> Result<CpuBackend, ThreadPoolError> {
         let (pool, parallel) = match threading {
             Threading::Single => (None, false),
@@ -141,20 +144,24 @@ impl CpuBackend {
                 (Some(pool), n > 1)
             }
         };
+        let frame = tissue.frame;
         Ok(CpuBackend {
             tissue,
             pool,
             parallel,
             steps: 0,
+            frame,
         })
     }
 
-    /// The tissue (all arrays) as it is now.
+    /// The tissue (all arrays) as it is now; its positions are in its frame
+    /// ([`Tissue::frame`]), the world's for a body near the origin.
     pub fn tissue(&self) -> &Tissue {
         &self.tissue
     }
 
-    /// Mutable access to the tissue, for drivers that edit arrays in place.
+    /// Mutable access to the tissue, for drivers that edit arrays in place (positions in
+    /// [`Tissue::frame`]).
     pub fn tissue_mut(&mut self) -> &mut Tissue {
         &mut self.tissue
     }
@@ -241,13 +248,29 @@ impl Backend for CpuBackend {
         out: &mut [Vec4],
     ) -> Result<(), SimError> {
         check_range(&range, self.capacity(), "allocated")?;
+        let s = &self.tissue.state;
         let src = match field {
-            NodeField::Position => &self.tissue.state.positions,
-            NodeField::Velocity => &self.tissue.state.velocities,
-            NodeField::Force => &self.tissue.state.forces,
-            NodeField::PositionRemainder => &self.tissue.state.position_remainders,
+            NodeField::Position | NodeField::StoredPosition => &s.positions,
+            NodeField::Velocity => &s.velocities,
+            NodeField::Force => &s.forces,
+            NodeField::PositionRemainder | NodeField::StoredRemainder => &s.position_remainders,
         };
-        out.copy_from_slice(&src[range]);
+        out.copy_from_slice(&src[range.clone()]);
+        if !self.frame.is_world() {
+            let f = self.frame;
+            match field {
+                NodeField::Position => out.iter_mut().for_each(|p| *p = f.to_world(*p)),
+                NodeField::PositionRemainder => {
+                    for (r, p) in out.iter_mut().zip(&s.positions[range]) {
+                        *r = f.world_remainder(*p, *r);
+                    }
+                }
+                NodeField::Velocity
+                | NodeField::Force
+                | NodeField::StoredPosition
+                | NodeField::StoredRemainder => {}
+            }
+        }
         Ok(())
     }
 
@@ -260,12 +283,20 @@ impl Backend for CpuBackend {
                 s.position_remainders[range.clone()].fill([0.0; 4]);
                 &mut s.positions
             }
+            NodeField::StoredPosition => &mut s.positions,
             NodeField::Velocity => &mut s.velocities,
             NodeField::Force => &mut s.forces,
-            NodeField::PositionRemainder => &mut s.position_remainders,
+            NodeField::PositionRemainder | NodeField::StoredRemainder => &mut s.position_remainders,
         };
-        dst[range].copy_from_slice(data);
+        dst[range.clone()].copy_from_slice(data);
+        if field == NodeField::Position {
+            self.frame.slice_to_frame(&mut dst[range]);
+        }
         Ok(())
+    }
+
+    fn position_frame(&self) -> PositionFrame {
+        self.frame
     }
 
     fn write_neighbour_rows(

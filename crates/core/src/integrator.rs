@@ -21,8 +21,10 @@
 //! `r` ([`crate::backend::NodeField::PositionRemainder`]), and adds it to the next
 //! increment. `x + r` is the position to about 2^-48 of its size, the stored `x` is its
 //! nearest f32, and no increment is lost however small. The forces still see the f32 `x`
-//! (an error of at most half a unit in the last place, the same as any f32 position). The
-//! cost is one more array of 16 bytes per node read and written by the integration.
+//! (an error of at most half a unit in the last place, the same as any f32 position); so
+//! that this unit is the body's own and not that of its distance from the world's origin,
+//! positions are stored in a per-body frame ([`crate::frame`]). The cost is one more
+//! array of 16 bytes per node read and written by the integration.
 //!
 //! TwoSum is used rather than the shorter Fast2Sum because Fast2Sum needs `|x| >= |d|`,
 //! which fails for a node near the origin.

@@ -25,6 +25,7 @@ mod build_tissue;
 pub mod calibration;
 pub mod cpu;
 pub mod error;
+pub mod frame;
 pub mod geometry;
 pub mod integrator;
 pub mod math;

@@ -4,6 +4,7 @@
 
 use crate::boundary::{Boundary, HeldSet, LoadSet};
 use crate::error::{GeometryError, SceneError};
+use crate::frame::PositionFrame;
 use crate::geometry::{self, NodeCloud};
 use crate::math::Vec4;
 use crate::models::{material_row, ArrayInfo, ShapeInfo};
@@ -47,6 +48,11 @@ pub struct Tissue {
     pub boundary: Boundary,
     /// The regions and each mesh node's region ([`crate::regions`]).
     pub regions: Regions,
+    /// The frame of the positions in `state` and of the rest positions in `shape`: the
+    /// world translated to a per-body origin ([`crate::frame`]), the world itself for a
+    /// body within about its size of the origin. The backends read and write positions
+    /// in world coordinates.
+    pub frame: PositionFrame,
 }
 
 impl Tissue {
@@ -132,11 +138,12 @@ impl Tissue {
         }
         let (boundary, fixed) = build_boundary(scene, &cloud, &masses)?;
         let n_fixed = fixed.iter().filter(|&&f| f).count();
-        let mut rest: Vec<Vec4> = cloud
-            .positions
-            .iter()
-            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32, 0.0])
-            .collect();
+        let frame = PositionFrame::for_body(&cloud.positions);
+        let local = |p: [f64; 3], w: f32| {
+            let q = frame.local(p);
+            [q[0], q[1], q[2], w]
+        };
+        let mut rest: Vec<Vec4> = cloud.positions.iter().map(|&p| local(p, 0.0)).collect();
         rest.resize(capacity, [0.0; 4]);
         let shape = ShapeInfo::build(
             &scene.material,
@@ -169,7 +176,7 @@ impl Tissue {
             .map(|i| {
                 let p = cloud.positions[i];
                 if fixed[i] {
-                    [p[0] as f32, p[1] as f32, p[2] as f32, 0.0]
+                    local(p, 0.0)
                 } else {
                     let inv_mass = (1.0 / masses[i]) as f32;
                     let q: [f64; 3] = if s == [1.0; 3] {
@@ -177,7 +184,7 @@ impl Tissue {
                     } else {
                         std::array::from_fn(|a| centre[a] + s[a] * (p[a] - centre[a]))
                     };
-                    [q[0] as f32, q[1] as f32, q[2] as f32, inv_mass]
+                    local(q, inv_mass)
                 }
             })
             .collect();
@@ -195,6 +202,7 @@ impl Tissue {
             n_fixed,
             boundary,
             regions,
+            frame,
         };
         if let TimeStep::Seconds(dt) = scene.physics.dt {
             tissue.step = crate::integrator::StepParams::new(dt, &scene.physics);

@@ -10,6 +10,7 @@ use crate::layout;
 use crate::params::Params;
 use crate::profile::{map_read, KernelTime, Profiler};
 use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
+use needlesim_core::frame::PositionFrame;
 use needlesim_core::models::mls::ViscoRow;
 use needlesim_core::models::ShapeArray;
 use needlesim_core::{Backend, NodeField, NodeSelection, SimError, Tissue, Vec4};
@@ -40,6 +41,8 @@ pub struct GpuBackend {
     readbacks: AtomicU64,
     /// Timestamps per kernel, once profiling was enabled.
     profiler: Option<Profiler>,
+    /// The frame the positions buffer holds ([`needlesim_core::frame`]).
+    frame: PositionFrame,
 }
 
 /// The device buffers the tissue needs, by name: its arrays, with the viscoelastic
@@ -106,6 +109,7 @@ impl GpuBackend {
         }
         let st = &tissue.state;
         let capacity = st.capacity();
+        let frame = tissue.frame;
         let nb = &tissue.neighbours;
         let step = &tissue.step;
         let mut params = Params {
@@ -198,6 +202,7 @@ impl GpuBackend {
             steps: 0,
             readbacks: AtomicU64::new(0),
             profiler: None,
+            frame,
         };
         backend
             .set_n_active(st.n_active)
@@ -523,10 +528,12 @@ impl GpuBackend {
 
     fn field(&self, field: NodeField) -> &wgpu::Buffer {
         match field {
-            NodeField::Position => &self.buffers.positions,
+            NodeField::Position | NodeField::StoredPosition => &self.buffers.positions,
             NodeField::Velocity => &self.buffers.velocities,
             NodeField::Force => &self.buffers.forces,
-            NodeField::PositionRemainder => &self.buffers.position_remainders,
+            NodeField::PositionRemainder | NodeField::StoredRemainder => {
+                &self.buffers.position_remainders
+            }
         }
     }
 
@@ -610,11 +617,44 @@ impl Backend for GpuBackend {
         outs: &mut [&mut [Vec4]],
     ) -> Result<(), SimError> {
         check_many(requests, outs)?;
+        let frame = self.frame;
+        // In a translated frame a remainder's world value needs the stored position too:
+        // read in the same transfer.
+        let mut stored: Vec<(usize, Vec<Vec4>)> = if frame.is_world() {
+            Vec::new()
+        } else {
+            requests
+                .iter()
+                .enumerate()
+                .filter(|(_, (field, _))| *field == NodeField::PositionRemainder)
+                .map(|(i, _)| (i, vec![[0.0f32; 4]; outs[i].len()]))
+                .collect()
+        };
         let mut pieces = Vec::new();
         for ((field, nodes), out) in requests.iter().zip(outs.iter_mut()) {
             self.pieces(*field, nodes, out, &mut pieces)?;
         }
-        self.read_pieces(pieces)
+        for (i, out) in stored.iter_mut() {
+            self.pieces(NodeField::Position, &requests[*i].1, out, &mut pieces)?;
+        }
+        self.read_pieces(pieces)?;
+        if !frame.is_world() {
+            for ((field, _), out) in requests.iter().zip(outs.iter_mut()) {
+                if *field == NodeField::Position {
+                    out.iter_mut().for_each(|p| *p = frame.to_world(*p));
+                }
+            }
+            for (i, positions) in stored {
+                for (r, p) in outs[i].iter_mut().zip(&positions) {
+                    *r = frame.world_remainder(*p, *r);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn position_frame(&self) -> PositionFrame {
+        self.frame
     }
 
     fn readbacks(&self) -> u64 {
@@ -670,7 +710,13 @@ impl Backend for GpuBackend {
         check_range(&(first..first + data.len()), self.capacity, "allocated")?;
         let offset = (first * 16) as u64;
         let queue = &self.ctx.queue;
-        queue.write_buffer(self.field(field), offset, bytemuck::cast_slice(data));
+        if field == NodeField::Position && !self.frame.is_world() {
+            let mut stored = data.to_vec();
+            self.frame.slice_to_frame(&mut stored);
+            queue.write_buffer(self.field(field), offset, bytemuck::cast_slice(&stored));
+        } else {
+            queue.write_buffer(self.field(field), offset, bytemuck::cast_slice(data));
+        }
         if field == NodeField::Position && !data.is_empty() {
             // A written position is exact (Backend::write).
             let zeros = vec![0u8; data.len() * 16];

@@ -136,6 +136,8 @@ impl SceneText {
 pub(crate) struct BackendSnapshot {
     pub n_active: usize,
     pub steps: u64,
+    /// Positions as the backend stores them, in the tissue's frame
+    /// (`NodeField::StoredPosition`; the world's for a body near the origin).
     pub positions: Vec<Vec4>,
     pub velocities: Vec<Vec4>,
     pub forces: Vec<Vec4>,

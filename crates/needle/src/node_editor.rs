@@ -27,6 +27,7 @@
 //! renormalisation, which would touch every node).
 
 use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
+use needlesim_core::frame::PositionFrame;
 use needlesim_core::math::Vec4;
 use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::models::{ShapeArray, ShapeInfo};
@@ -41,7 +42,7 @@ use thiserror::Error;
 pub enum Placement {
     /// Fitted from the neighbourhood, less an elastic offset (world frame, m).
     Offset([f64; 3]),
-    /// Given, m.
+    /// Given (world frame), m.
     Rest([f64; 3]),
 }
 
@@ -121,6 +122,9 @@ pub struct NodeEditor {
     n_mesh: usize,
     n_active: usize,
     log: Vec<Addition>,
+    /// The frame of `rest` and of the shape information's rest positions
+    /// ([`Tissue::frame`]); positions read from the backend are world ones.
+    frame: PositionFrame,
 }
 
 impl NodeEditor {
@@ -130,8 +134,10 @@ impl NodeEditor {
         let capacity = tissue.state.capacity();
         let n = tissue.n_mesh;
         let mut r = vec![[0.0f32; 4]; capacity];
+        let frame = tissue.frame;
         for (o, p) in r.iter_mut().zip(rest) {
-            *o = DVec3::from_array(*p).as_vec3().extend(0.0).to_array();
+            let q = frame.local(*p);
+            *o = [q[0], q[1], q[2], 0.0];
         }
         let nb = tissue.neighbours.clone();
         let k = nb.k;
@@ -158,6 +164,7 @@ impl NodeEditor {
             n_mesh: n,
             n_active: tissue.state.n_active,
             log: Vec::new(),
+            frame,
         }
     }
 
@@ -192,10 +199,11 @@ impl NodeEditor {
         &self.shape
     }
 
-    /// Rest position of node `i`.
-    pub fn rest_position(&self, i: usize) -> [f32; 3] {
+    /// Rest position of node `i` in world coordinates (the f32 rest position the shape
+    /// information holds, moved out of [`Tissue::frame`]).
+    pub fn rest_position(&self, i: usize) -> [f64; 3] {
         let r = self.rest[i];
-        [r[0], r[1], r[2]]
+        self.frame.global([r[0], r[1], r[2]])
     }
 
     /// Inverse mass of a free node.
@@ -361,7 +369,7 @@ impl NodeEditor {
                 // v = R^T d
                 c0 + rot.transpose() * d
             }
-            Placement::Rest(r) => DVec3::from_array(r),
+            Placement::Rest(r) => DVec3::from_array(r) - DVec3::from_array(self.frame.origin()),
         }
         .as_vec3()
         .extend(0.0)

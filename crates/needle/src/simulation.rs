@@ -576,7 +576,7 @@ impl Simulation {
     }
 
     fn rest_of(&self, v: u32) -> [f64; 3] {
-        self.editor.rest_position(v as usize).map(|x| x as f64)
+        self.editor.rest_position(v as usize)
     }
 
     fn edit(&self, source: EditError) -> SimulationError {

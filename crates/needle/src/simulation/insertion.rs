@@ -148,7 +148,7 @@ impl Simulation {
             let editor = &self.editor;
             self.state
                 .surface
-                .unsplit(|v| editor.rest_position(v as usize).map(|x| x as f64));
+                .unsplit(|v| editor.rest_position(v as usize));
             self.state.phase = if node.role == NodeRole::Surface {
                 self.state.region = None;
                 self.state.denting = None;
@@ -192,9 +192,9 @@ impl Simulation {
             .map_err(|e| self.edit(e))?;
         let node = self.state.nodes.last().expect("just added").index;
         let editor = &self.editor;
-        self.state.surface.split(id, node, |v| {
-            editor.rest_position(v as usize).map(|x| x as f64)
-        });
+        self.state
+            .surface
+            .split(id, node, |v| editor.rest_position(v as usize));
         if role == NodeRole::Surface && self.sheathed() {
             self.state.patch = Some(self.entry_patch());
             self.settle(0, now, &[point])?;

@@ -20,10 +20,12 @@ impl Simulation {
             Ok(out)
         };
         let (positions, velocities, forces, position_remainders) = (
-            field(NodeField::Position)?,
+            // As stored (in the tissue's frame), so that a body far from the origin
+            // resumes bit for bit too.
+            field(NodeField::StoredPosition)?,
             field(NodeField::Velocity)?,
             field(NodeField::Force)?,
-            field(NodeField::PositionRemainder)?,
+            field(NodeField::StoredRemainder)?,
         );
         let mut shape = Vec::new();
         for (name, bytes) in self.editor.shape().bytes() {
@@ -101,11 +103,10 @@ impl Simulation {
             );
         }
         let b = self.backend.as_mut();
-        b.write(NodeField::Position, 0, &bs.positions)?;
+        b.write(NodeField::StoredPosition, 0, &bs.positions)?;
         b.write(NodeField::Velocity, 0, &bs.velocities)?;
         b.write(NodeField::Force, 0, &bs.forces)?;
-        // After the positions, whose write clears it.
-        b.write(NodeField::PositionRemainder, 0, &bs.position_remainders)?;
+        b.write(NodeField::StoredRemainder, 0, &bs.position_remainders)?;
         let nb = self.editor.neighbours();
         b.write_neighbour_rows(0, &nb.index, &nb.weight)?;
         let names: Vec<_> = self.editor.shape().bytes().iter().map(|a| a.0).collect();

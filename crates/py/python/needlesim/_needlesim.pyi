@@ -61,7 +61,8 @@ class Simulation:
         """Runs n steps with the interpreter lock released; RuntimeError on divergence."""
     @property
     def positions(self) -> npt.NDArray[np.float64]:
-        """(active_nodes, 3) positions in m (copy)."""
+        """(active_nodes, 3) positions in m (copy): the f32 position plus the
+        integrator's remainder, resolving displacements far below f32's spacing."""
     @property
     def velocities(self) -> npt.NDArray[np.float64]:
         """(active_nodes, 3) velocities in m/s (copy)."""
