@@ -241,6 +241,32 @@ def test_boundary_conditions_from_a_dict_and_their_reactions():
         needlesim.Simulation.from_dict(bad)
 
 
+def test_positions_resolve_a_micrometre_sag_a_metre_from_the_origin():
+    # The same clamped cube at the origin and moved 1 m, sagging about 30 um under 0.1% of
+    # gravity. f32 positions 1 m out are 1.2e-7 m apart (4e-3 of the sag); `positions` is
+    # the stored position plus its remainder, and the tissue is kept in a frame at its own
+    # place (needlesim::core::frame), so the two displacement fields agree to 1e-4 of the
+    # largest (tests/precision.rs measures 1e-10 in Rust).
+    def sag(shift):
+        scene = {
+            "tissue": {
+                "density": 1000.0,
+                "geometry": {"kind": "box", "min": [shift] * 3, "max": [shift + 0.1] * 3, "nodes": 125},
+            },
+            "material": {"model": "debunne_meshfree", "young_modulus": 1e4, "poisson_ratio": 0.3},
+            "physics": {"dt": 1e-4, "damping": 60.0, "gravity": [0.0, -9.81e-3, 0.0]},
+            "fixed": [{"axis": "x", "below": shift + 0.001}],
+        }
+        sim = needlesim.Simulation.from_dict(scene, threads=1)
+        sim.step(10_000)
+        return sim.positions - sim.rest_positions
+
+    near, far = sag(0.0), sag(1.0)
+    largest = np.linalg.norm(near, axis=1).max()
+    assert 1e-5 < largest < 1e-4
+    assert np.linalg.norm(far - near, axis=1).max() < 1e-4 * largest
+
+
 def test_a_scene_dict_that_contains_itself_is_a_value_error():
     # It used to recurse until the interpreter crashed.
     scene = {"tissue": {}}
