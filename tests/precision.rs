@@ -36,6 +36,12 @@ fn cube(material: Material, gravity: f64, shift: [f64; 3]) -> Scene {
 /// f64.
 fn settled(b: &mut dyn Backend, rest: &[[f64; 3]]) -> Vec<[f64; 3]> {
     b.step(STEPS);
+    displacements(b, rest)
+}
+
+/// Every node's displacement from `rest`: position plus remainder less the rest position,
+/// in f64.
+fn displacements(b: &mut dyn Backend, rest: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let p = read(b, NodeField::Position);
     let e = read(b, NodeField::PositionRemainder);
     rest.iter()
@@ -167,12 +173,7 @@ fn a_prescribed_displacement_far_from_the_origin_is_exact_too() {
             sim_time += DT;
             boundary.project(&mut b, sim_time).unwrap();
         }
-        let p = read(&mut b, NodeField::Position);
-        let e = read(&mut b, NodeField::PositionRemainder);
-        rest.iter()
-            .zip(p.iter().zip(&e))
-            .map(|(r, (p, e))| [0, 1, 2].map(|k| (p[k] as f64 - r[k]) + e[k] as f64))
-            .collect::<Vec<_>>()
+        displacements(&mut b, &rest)
     };
     let (u0, u1) = (field([0.0; 3]), field([1.0; 3]));
     let (scale, worst) = largest_and_difference(&u0, &u1);
@@ -215,11 +216,7 @@ type Points = Vec<[f64; 3]>;
 
 /// The displacements and rest positions of the cube settled on the GPU; `None` (the test
 /// skipped) without an adapter unless `NEEDLESIM_REQUIRE_GPU` is set.
-fn gpu_settled(
-    material: Material,
-    gravity: f64,
-    shift: [f64; 3],
-) -> Option<(Points, Points)> {
+fn gpu_settled(material: Material, gravity: f64, shift: [f64; 3]) -> Option<(Points, Points)> {
     let scene = cube(material, gravity, shift);
     let rest = rest_positions(&scene);
     let tissue = Tissue::from_scene(&scene).unwrap();

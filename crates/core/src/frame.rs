@@ -58,14 +58,7 @@ impl PositionFrame {
     /// The frame for a body whose nodes are at `positions` (world, metres; module docs).
     /// The world frame for no node, a single point or non-finite positions.
     pub fn for_body(positions: &[[f64; 3]]) -> PositionFrame {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in positions {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
+        let (lo, hi) = crate::geometry::bounds(positions);
         let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
         if !(extent > 0.0 && extent.is_finite()) || (0..3).any(|a| !lo[a].is_finite()) {
             return PositionFrame::WORLD;
