@@ -27,6 +27,9 @@ pub struct SceneInfo {
     pub triangles: usize,
     /// Node bounds (min, max) in m.
     pub bounds: ([f64; 3], [f64; 3]),
+    /// Origin of the frame the positions are stored in, m ([`needlesim_core::frame`]):
+    /// zero for a body within about its size of the origin.
+    pub frame_origin: [f64; 3],
     /// Smallest, mean and largest node mass in kg.
     pub node_masses: [f64; 3],
     /// Total mass of the mesh nodes in kg.
@@ -83,9 +86,10 @@ impl SceneInfo {
     /// Summarises an already built tissue.
     pub fn of_tissue(scene: &Scene, t: &Tissue) -> SceneInfo {
         let n = t.n_mesh;
+        // In world coordinates: the tissue keeps its positions in its frame.
         let rest: Vec<[f64; 3]> = t.state.positions[..n]
             .iter()
-            .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+            .map(|p| t.frame.global([p[0], p[1], p[2]]))
             .collect();
         SceneInfo {
             name: scene.name.clone(),
@@ -97,6 +101,7 @@ impl SceneInfo {
             fixed: t.n_fixed,
             triangles: t.triangles.len(),
             bounds: needlesim_core::geometry::bounds(&rest),
+            frame_origin: t.frame.origin(),
             node_masses: min_mean_max(&t.masses),
             mass: t.masses.iter().sum(),
             volume: t.volume,
@@ -152,6 +157,14 @@ impl fmt::Display for SceneInfo {
             "bounds     [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}] m",
             lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
         )?;
+        if self.frame_origin != [0.0; 3] {
+            let o = self.frame_origin;
+            writeln!(
+                f,
+                "frame      positions stored relative to [{}, {}, {}] m (far from the origin)",
+                o[0], o[1], o[2]
+            )?;
+        }
         let [lo, mean, hi] = self.node_masses;
         writeln!(
             f,

@@ -76,6 +76,28 @@ fn info_lists_the_arrays_of_the_chosen_model_only() {
     );
 }
 
+/// A body 1 m from the origin is kept in a frame of its own (`needlesim::core::frame`);
+/// `info` still gives its bounds in world coordinates and says where the frame is.
+#[test]
+fn info_gives_world_bounds_and_the_frame_of_a_far_body() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("far.toml");
+    std::fs::write(
+        &scene,
+        "[tissue]\ngeometry = { kind = \"box\", min = [1.0, 1.0, 1.0], max = [1.1, 1.1, 1.1], \
+         nodes = 125 }\n[material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n",
+    )
+    .unwrap();
+    let o = needlesim().arg("info").arg(&scene).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}");
+    assert!(
+        stdout.contains("[1.0000, 1.0000, 1.0000] .. [1.1000, 1.1000, 1.1000] m"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("relative to [1, 1, 1] m"), "{stdout}");
+}
+
 #[test]
 fn a_bad_scene_fails_with_a_message_not_a_panic() {
     let dir = tempfile::tempdir().unwrap();
