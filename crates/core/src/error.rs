@@ -64,8 +64,12 @@ pub enum GeometryError {
         /// The file.
         path: PathBuf,
     },
-    /// A vertex coordinate is NaN or infinite.
-    #[error("surface file {path}: vertex {vertex} has a non-finite coordinate")]
+    /// A vertex coordinate is NaN or infinite (after `scale`; OBJ and STL coordinates are
+    /// read as f32, so one beyond 3.4e38 in the file is infinite).
+    #[error(
+        "surface file {path}: vertex {vertex} has a coordinate that is not a finite number \
+         (NaN, infinite, or beyond the 3.4e38 that an OBJ or STL coordinate can hold)"
+    )]
     NonFiniteVertex {
         /// The file.
         path: PathBuf,

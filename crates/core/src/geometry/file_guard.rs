@@ -96,75 +96,315 @@ pub(crate) fn check_vtk(path: &Path, bytes: &[u8]) -> Result<(), GeometryError> 
         ));
     }
     let size = bytes.len() as u64;
-    if bytes.starts_with(b"# vtk DataFile") {
-        check_legacy_vtk(path, bytes, size)
-    } else {
+    if is_xml(bytes) {
         check_xml_vtk(path, bytes, size)
+    } else {
+        check_legacy_vtk(path, vtk_body(bytes), size)
     }
 }
 
-fn check_legacy_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryError> {
-    let mut lines = bytes.split(|&b| b == b'\n');
+/// `bytes` from its first line on: without a UTF-8 byte order mark and blank space before
+/// it, which the readers skip. (A legacy file that began with a newline went to the XML
+/// check, so none of its counts were checked, and vtkio then allocated 24 GB.)
+fn vtk_body(bytes: &[u8]) -> &[u8] {
+    bytes
+        .strip_prefix(b"\xEF\xBB\xBF")
+        .unwrap_or(bytes)
+        .trim_ascii_start()
+}
+
+/// An ASCII legacy cell list (`words` from just after its header `what`: `n` cells in
+/// `total` numbers, over `points` points) read as its reader will: each cell a vertex
+/// count and that many point numbers. A count that disagrees with the cells, a negative
+/// or non-integer number or a point beyond the file's was "holds no surface cells" or a
+/// failed assertion inside the reader; here it names the cell.
+fn check_ascii_cells(
+    path: &Path,
+    words: &[&str],
+    n: u64,
+    total: u64,
+    points: u64,
+    what: &str,
+) -> Result<(), GeometryError> {
+    let fail = |m: String| bad(path, format!("`{what}`: {m}"));
+    let number = |at: usize, cell: u64| -> Result<u64, GeometryError> {
+        let w = words
+            .get(at)
+            .ok_or_else(|| fail(format!("the file ends in cell {cell} of {n}")))?;
+        w.parse::<u64>().map_err(|_| {
+            fail(format!(
+                "cell {cell} holds `{w}` where a non-negative whole number is needed"
+            ))
+        })
+    };
+    let mut at = 0usize;
+    for cell in 0..n {
+        let k = number(at, cell)?;
+        if k > total {
+            return Err(fail(format!("cell {cell} claims {k} vertices")));
+        }
+        for v in 0..k as usize {
+            let p = number(at + 1 + v, cell)?;
+            if p >= points {
+                return Err(fail(format!(
+                    "cell {cell} uses point {p}, but the file has {points} points"
+                )));
+            }
+        }
+        at += 1 + k as usize;
+    }
+    if at as u64 != total {
+        return Err(fail(format!(
+            "its {n} cells hold {at} numbers, not the {total} the header says"
+        )));
+    }
+    Ok(())
+}
+
+/// Whether a VTK file is XML (`.vtp`, `.vtu`) rather than legacy, by its content.
+pub(crate) fn is_xml(bytes: &[u8]) -> bool {
+    vtk_body(bytes).starts_with(b"<")
+}
+
+/// The bytes vtkio is given for an XML VTK file: `bytes`, with `header_type="UInt32"`
+/// added to the `VTKFile` tag when it has none. That is VTK's default for the block
+/// headers of compressed data (files of format version 0.1 have no attribute), but
+/// vtkio assumes UInt64: such a file failed with a size mismatch, and the compression
+/// check, which read 4-byte words, could be passed by a header vtkio read otherwise.
+pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
+    let Some(at) = find(bytes, b"<VTKFile") else {
+        return Cow::Borrowed(bytes);
+    };
+    let end = bytes[at..]
+        .iter()
+        .position(|&b| b == b'>')
+        .map_or(bytes.len(), |e| at + e);
+    let tag = String::from_utf8_lossy(&bytes[at..end]);
+    if attribute(&tag, "header_type").is_some() {
+        return Cow::Borrowed(bytes);
+    }
+    let insert = at + b"<VTKFile".len();
+    let mut out = Vec::with_capacity(bytes.len() + 24);
+    out.extend_from_slice(&bytes[..insert]);
+    out.extend_from_slice(b" header_type=\"UInt32\"");
+    out.extend_from_slice(&bytes[insert..]);
+    Cow::Owned(out)
+}
+
+/// The first position of `needle` in `haystack`.
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+/// Bytes of one binary value of the VTK data type named `t` (4 for a name it does not
+/// know: the smallest bound that still counts a float).
+fn type_width(t: &str) -> u64 {
+    match t.to_ascii_lowercase().as_str() {
+        "double" | "long" | "unsigned_long" | "vtkidtype" | "vtktypeint64" | "vtktypeuint64" => 8,
+        "short" | "unsigned_short" | "vtktypeint16" | "vtktypeuint16" => 2,
+        "char" | "unsigned_char" | "bit" | "vtktypeint8" | "vtktypeuint8" => 1,
+        _ => 4,
+    }
+}
+
+/// Whether `t` names a VTK data type (a field array's header ends with one).
+fn is_type_name(t: &str) -> bool {
+    matches!(
+        t.to_ascii_lowercase().as_str(),
+        "bit"
+            | "char"
+            | "unsigned_char"
+            | "short"
+            | "unsigned_short"
+            | "int"
+            | "unsigned_int"
+            | "long"
+            | "unsigned_long"
+            | "float"
+            | "double"
+            | "vtkidtype"
+    )
+}
+
+/// The legacy checks. `body` starts at the file's first line; the keywords are read as
+/// vtkio reads them, as a stream of words (`DATASET POLYDATA POINTS 5 float` on one line
+/// is valid), from the fourth line on (the second is free text). Every count that sizes
+/// an allocation is bounded by what the file's `size` bytes can hold: points, cell lists
+/// and cell types; the point and cell data counts; and the attributes' own counts, each
+/// times the data count before it (`SCALARS` components, at most 4 by the format;
+/// `COLOR_SCALARS` values; `TEXTURE_COORDINATES` dimension, at most 3; a
+/// `LOOKUP_TABLE`'s size; a `FIELD`'s array count and each array's components times
+/// tuples). Each of those made vtkio abort on a 5 to 64 GB allocation.
+fn check_legacy_vtk(path: &Path, body: &[u8], size: u64) -> Result<(), GeometryError> {
+    let mut lines = body.split(|&b| b == b'\n');
     let binary = lines
         .nth(2)
         .is_some_and(|l| l.trim_ascii().eq_ignore_ascii_case(b"BINARY"));
-    for line in bytes.split(|&b| b == b'\n') {
-        let Ok(text) = std::str::from_utf8(line.trim_ascii()) else {
-            continue;
-        };
-        let words: Vec<&str> = text.split_ascii_whitespace().collect();
-        let Some(&keyword) = words.first() else {
-            continue;
-        };
-        let number = |i: usize| -> Result<u64, GeometryError> {
-            words
-                .get(i)
-                .and_then(|w| w.parse::<u64>().ok())
-                .ok_or_else(|| bad(path, format!("`{text}`: expected a count after {keyword}")))
-        };
-        // (values the section holds, bytes of one binary value)
-        let (values, width) = match keyword.to_ascii_uppercase().as_str() {
+    let rest_at = {
+        let mut at = 0;
+        for _ in 0..3 {
+            match body[at..].iter().position(|&b| b == b'\n') {
+                Some(i) => at += i + 1,
+                None => return Ok(()),
+            }
+        }
+        at
+    };
+    let words: Vec<&str> = body[rest_at..]
+        .split(|b| b.is_ascii_whitespace())
+        .filter(|w| !w.is_empty())
+        .filter_map(|w| std::str::from_utf8(w).ok())
+        .collect();
+    let least = |width: u64| if binary { width } else { 2 };
+    let fits = |values: u64, width: u64, what: String| -> Result<(), GeometryError> {
+        if values.saturating_mul(least(width)) > size {
+            return Err(bad(
+                path,
+                format!("`{what}` declares {values} numbers, more than the file's {size} bytes can hold"),
+            ));
+        }
+        Ok(())
+    };
+    let count = |i: usize, keyword: &str| -> Result<u64, GeometryError> {
+        words
+            .get(i)
+            .and_then(|w| w.parse::<u64>().ok())
+            .ok_or_else(|| bad(path, format!("expected a count after {keyword}")))
+    };
+    let phrase = |from: usize, n: usize| words[from..(from + n).min(words.len())].join(" ");
+    // Values per point or cell data item follow from the last POINT_DATA / CELL_DATA.
+    let mut data_count = 0u64;
+    let mut points = 0u64;
+    // Where a `LOOKUP_TABLE` right after a SCALARS header names a table (no size).
+    let mut scalars_end = usize::MAX;
+    for (i, &word) in words.iter().enumerate() {
+        let keyword = word.to_ascii_uppercase();
+        match keyword.as_str() {
             "POINTS" => {
-                let n = number(1)?;
-                let width = match words.get(2).map(|w| w.to_ascii_lowercase()) {
-                    Some(t) if t == "double" || t.ends_with("long") => 8,
-                    Some(t) if t == "short" || t == "unsigned_short" => 2,
-                    Some(t) if t == "char" || t == "unsigned_char" || t == "bit" => 1,
-                    _ => 4,
-                };
-                (n.saturating_mul(3), width)
+                let n = count(i + 1, word)?;
+                points = n;
+                let width = words.get(i + 2).map_or(4, |t| type_width(t));
+                fits(n.saturating_mul(3), width, phrase(i, 3))?;
             }
             "POLYGONS" | "TRIANGLE_STRIPS" | "VERTICES" | "LINES" | "CELLS" => {
-                let n = number(1)?;
-                let total = number(2)?;
+                let (n, total) = (count(i + 1, word)?, count(i + 2, word)?);
+                if words
+                    .get(i + 3)
+                    .is_some_and(|w| w.eq_ignore_ascii_case("OFFSETS"))
+                {
+                    return Err(bad(
+                        path,
+                        "it uses the legacy VTK 5.1 cell layout (OFFSETS and CONNECTIVITY), \
+                         which this reader does not read: save it as legacy VTK 4.2 or as .vtp"
+                            .into(),
+                    ));
+                }
                 if total < n {
                     return Err(bad(
                         path,
-                        format!("`{text}`: {n} cells cannot fit in {total} numbers"),
+                        format!(
+                            "`{}`: {n} cells cannot fit in {total} numbers",
+                            phrase(i, 3)
+                        ),
                     ));
                 }
-                (total, 4)
+                fits(total, 4, phrase(i, 3))?;
+                if !binary {
+                    check_ascii_cells(path, &words[i + 3..], n, total, points, &phrase(i, 3))?;
+                }
             }
-            "CELL_TYPES" | "POINT_DATA" | "CELL_DATA" => (number(1)?, 1),
-            _ => continue,
-        };
-        let least = if binary { width } else { 2 };
-        if values.saturating_mul(least) > size {
-            return Err(bad(
-                path,
-                format!(
-                    "`{text}` declares {values} numbers, more than the file's {size} bytes \
-                     can hold"
-                ),
-            ));
+            "CELL_TYPES" => fits(count(i + 1, word)?, 4, phrase(i, 2))?,
+            "POINT_DATA" | "CELL_DATA" => {
+                data_count = count(i + 1, word)?;
+                fits(data_count, 1, phrase(i, 2))?;
+            }
+            "SCALARS" => {
+                // SCALARS name type [components]
+                let components = words.get(i + 3).and_then(|w| w.parse::<u64>().ok());
+                if let Some(c) = components {
+                    if !(1..=4).contains(&c) {
+                        return Err(bad(
+                            path,
+                            format!("`{}`: scalars have 1 to 4 components", phrase(i, 4)),
+                        ));
+                    }
+                }
+                let width = words.get(i + 2).map_or(4, |t| type_width(t));
+                fits(
+                    data_count.saturating_mul(components.unwrap_or(1)),
+                    width,
+                    phrase(i, 4),
+                )?;
+                scalars_end = i + 3 + usize::from(components.is_some());
+            }
+            "LOOKUP_TABLE" if i != scalars_end => {
+                // A table's definition: LOOKUP_TABLE name size, 4 values an entry.
+                let n = count(i + 2, word)?;
+                fits(n.saturating_mul(4), 1, phrase(i, 3))?;
+            }
+            "COLOR_SCALARS" => {
+                let n = count(i + 2, word)?;
+                fits(data_count.saturating_mul(n), 1, phrase(i, 3))?;
+            }
+            "TEXTURE_COORDINATES" => {
+                let dim = count(i + 2, word)?;
+                if !(1..=3).contains(&dim) {
+                    return Err(bad(
+                        path,
+                        format!(
+                            "`{}`: texture coordinates have 1 to 3 dimensions",
+                            phrase(i, 4)
+                        ),
+                    ));
+                }
+                let width = words.get(i + 3).map_or(4, |t| type_width(t));
+                fits(data_count.saturating_mul(dim), width, phrase(i, 4))?;
+            }
+            "FIELD" => {
+                // FIELD name arrays: each array takes a header line of 4 words at least.
+                let n = count(i + 2, word)?;
+                fits(n.saturating_mul(4), 1, phrase(i, 3))?;
+            }
+            _ => {
+                // A field array's header: name components tuples type.
+                let header = (
+                    words.get(i + 1).and_then(|w| w.parse::<u64>().ok()),
+                    words.get(i + 2).and_then(|w| w.parse::<u64>().ok()),
+                    words.get(i + 3),
+                );
+                if let (Some(c), Some(t), Some(ty)) = header {
+                    if is_type_name(ty) && word.parse::<f64>().is_err() {
+                        fits(c.saturating_mul(t), type_width(ty), phrase(i, 4))?;
+                    }
+                }
+            }
         }
     }
     Ok(())
 }
 
+/// The most points, and the most cells, a surface file may declare: 2^25 (33.5 million;
+/// 0.8 GB of coordinates, far beyond any organ surface, whose meshes have up to a few
+/// million). Within the other bounds a 4 MB `.vtp` declaring 170 million points could
+/// hold a zlib stream that vtkio inflated to 3 GB before it failed.
+pub const MAX_SURFACE_ITEMS: u64 = 1 << 25;
+
+/// The tags named `name` (`<name ...>`, without the brackets) in `text`.
+fn tags<'a>(text: &'a str, name: &str) -> Vec<&'a str> {
+    let open = format!("<{name}");
+    text.match_indices(open.as_str())
+        .map(|(at, _)| {
+            let tag = &text[at + open.len()..];
+            &tag[..tag.find('>').unwrap_or(tag.len())]
+        })
+        .filter(|tag| tag.is_empty() || tag.starts_with(|c: char| c.is_whitespace() || c == '/'))
+        .collect()
+}
+
 fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryError> {
     let text = String::from_utf8_lossy(bytes);
-    if text.contains("<Piece Source") || text.contains("<Piece  Source") {
+    let pieces = tags(&text, "Piece");
+    if pieces.iter().any(|tag| attribute(tag, "Source").is_some()) {
         return Err(bad(
             path,
             "its pieces are other files (a parallel VTK file): merge them into one .vtp or \
@@ -175,29 +415,28 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
     let most = size.saturating_mul(ZLIB_MAX_RATIO) / 4;
     // Declared points and cells over every piece: the most any appended array may hold.
     let (mut points, mut cells) = (0u64, 0u64);
-    for attribute in [
-        "NumberOfPoints",
-        "NumberOfCells",
-        "NumberOfPolys",
-        "NumberOfStrips",
-        "NumberOfVerts",
-        "NumberOfLines",
-    ] {
-        let pattern = format!("{attribute}=\"");
-        let mut rest: &str = &text;
-        while let Some(i) = rest.find(&pattern) {
-            rest = &rest[i + pattern.len()..];
-            let value = &rest[..rest.find('"').unwrap_or(rest.len())];
+    for tag in pieces {
+        for name in [
+            "NumberOfPoints",
+            "NumberOfCells",
+            "NumberOfPolys",
+            "NumberOfStrips",
+            "NumberOfVerts",
+            "NumberOfLines",
+        ] {
+            let Some(value) = attribute(tag, name) else {
+                continue;
+            };
             let n: u64 = value
                 .trim()
                 .parse()
-                .map_err(|_| bad(path, format!("{attribute}=\"{value}\" is not a count")))?;
-            match attribute {
+                .map_err(|_| bad(path, format!("{name}=\"{value}\" is not a count")))?;
+            match name {
                 "NumberOfPoints" => points = points.saturating_add(n),
                 _ => cells = cells.saturating_add(n),
             }
             // Points have 3 components.
-            let values = match attribute {
+            let values = match name {
                 "NumberOfPoints" => n.saturating_mul(3),
                 _ => n,
             };
@@ -205,12 +444,22 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
                 return Err(bad(
                     path,
                     format!(
-                        "{attribute}=\"{n}\": more than a {size}-byte file can hold, even \
+                        "{name}=\"{n}\": more than a {size}-byte file can hold, even \
                          compressed"
                     ),
                 ));
             }
         }
+    }
+    if points > MAX_SURFACE_ITEMS || cells > MAX_SURFACE_ITEMS {
+        return Err(bad(
+            path,
+            format!(
+                "it declares {points} points and {cells} cells, more than the \
+                 {MAX_SURFACE_ITEMS} a surface may have: decimate the surface (it needs only \
+                 to resolve the node spacing)"
+            ),
+        ));
     }
     // 8-byte values: 3 per point, and up to 16 vertex indices per cell (a triangle mesh
     // has 6 per point, 3 per cell), plus a little for empty arrays' headers.
@@ -221,12 +470,31 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
     check_appended_zlib(path, bytes, &text, budget)
 }
 
-/// The value of attribute `name` in the tag text `tag`, if present.
+/// The value of attribute `name` in the tag text `tag`, if present: `name="value"` or
+/// `name='value'`, with blanks allowed around the `=` (an attribute in single quotes or
+/// spaced out was not seen, and the compression check let a zlib bomb through).
 fn attribute<'a>(tag: &'a str, name: &str) -> Option<&'a str> {
-    let pattern = format!(" {name}=\"");
-    let start = tag.find(&pattern)? + pattern.len();
-    let len = tag[start..].find('"')?;
-    Some(&tag[start..start + len])
+    let mut from = 0;
+    while let Some(i) = tag[from..].find(name) {
+        let at = from + i;
+        from = at + name.len();
+        let before = tag[..at].chars().next_back();
+        if !before.is_some_and(char::is_whitespace) {
+            continue;
+        }
+        let rest = tag[from..].trim_start();
+        let Some(rest) = rest.strip_prefix('=') else {
+            continue;
+        };
+        let rest = rest.trim_start();
+        let Some(quote) = rest.chars().next().filter(|c| *c == '"' || *c == '\'') else {
+            continue;
+        };
+        let value = &rest[1..];
+        let len = value.find(quote)?;
+        return Some(&value[..len]);
+    }
+    None
 }
 
 /// The zlib block headers of appended data, raw or base64 (module docs).
@@ -239,27 +507,44 @@ fn check_appended_zlib(
     if !text.contains("vtkZLibDataCompressor") {
         return Ok(());
     }
-    let Some(tag_at) = text.find("<AppendedData") else {
+    // Positions in the file's bytes (the lossy text is longer wherever the file is not
+    // UTF-8: its offsets indexed past the end of the bytes).
+    let Some(tag_at) = find(bytes, b"<AppendedData") else {
         return Ok(());
     };
-    let tag_end = tag_at + text[tag_at..].find('>').unwrap_or(0);
-    let base64 = match attribute(&text[tag_at..tag_end], "encoding") {
+    let tag_end = bytes[tag_at..]
+        .iter()
+        .position(|&b| b == b'>')
+        .map_or(bytes.len(), |e| tag_at + e);
+    let tag = String::from_utf8_lossy(&bytes[tag_at..tag_end]);
+    let base64 = match attribute(&tag, "encoding") {
         Some("raw") => false,
         Some("base64") => true,
-        _ => return Ok(()),
+        Some(other) => {
+            return Err(bad(
+                path,
+                format!("its appended data has encoding \"{other}\" (raw or base64)"),
+            ))
+        }
+        None => return Ok(()),
     };
-    // The data start after the `_` that follows the tag; the text before it is ASCII, so
-    // its byte offset in the file is its offset in the lossy text.
     let Some(underscore) = bytes[tag_end..].iter().position(|&b| b == b'_') else {
         return Err(bad(path, "its appended data has no `_` start mark".into()));
     };
     let data = &bytes[tag_end + underscore + 1..];
-    let word = if text.contains("header_type=\"UInt64\"") {
-        8
-    } else {
-        4
+    // The header word as vtkio reads it, given `xml_for_reader`'s default.
+    let word = match find(bytes, b"<VTKFile").map(|at| {
+        let end = bytes[at..]
+            .iter()
+            .position(|&b| b == b'>')
+            .map_or(bytes.len(), |e| at + e);
+        String::from_utf8_lossy(&bytes[at..end]).into_owned()
+    }) {
+        Some(t) if attribute(&t, "header_type") == Some("UInt64") => 8,
+        _ => 4,
     };
-    let mut rest: &str = &text[..tag_at];
+    let head = String::from_utf8_lossy(&bytes[..tag_at]);
+    let mut rest: &str = &head;
     while let Some(i) = rest.find("<DataArray") {
         let tag = &rest[i..i + rest[i..].find('>').unwrap_or(rest.len() - i)];
         rest = &rest[i + tag.len()..];
@@ -335,7 +620,12 @@ fn base64_array(array: &[u8], word: usize) -> Result<(Vec<u64>, Cow<'static, [u8
     }
     let header_bytes = (3 + blocks) * w;
     let decoded = decode(0, header_bytes, "compression header")?;
-    let header = header_words(&decoded[..header_bytes as usize], word);
+    let header = header_words(
+        decoded
+            .get(..header_bytes as usize)
+            .ok_or("its compression header is shorter than its block count needs")?,
+        word,
+    );
     let compressed = header[3..].iter().fold(0u64, |a, &n| a.saturating_add(n));
     let data = decode(chars(header_bytes), compressed, "compressed data")?;
     Ok((header, Cow::Owned(data)))
@@ -424,7 +714,10 @@ pub(crate) fn check_stl(path: &Path, bytes: &[u8]) -> Result<bool, GeometryError
     if binary_size == Some(size) {
         return Ok(true);
     }
-    if bytes.trim_ascii_start().starts_with(b"solid") {
+    if stl_text_start(bytes)
+        .get(..5)
+        .is_some_and(|w| w.eq_ignore_ascii_case(b"solid"))
+    {
         return Ok(false);
     }
     Err(bad(
@@ -437,4 +730,34 @@ pub(crate) fn check_stl(path: &Path, bytes: &[u8]) -> Result<bool, GeometryError
             None => format!("{size} bytes: too short for an STL file"),
         },
     ))
+}
+
+/// An STL file from where its text starts: after a UTF-8 byte order mark and blank space
+/// (an ASCII file beginning with a byte order mark, or with `SOLID` in capitals, was
+/// taken for a binary one and refused for its size).
+pub(crate) fn stl_text_start(bytes: &[u8]) -> &[u8] {
+    vtk_body(bytes)
+}
+
+/// An OBJ file's text as its reader should see it: UTF-8 (an error naming the first bad
+/// byte otherwise; the reader said only "read error"), without a byte order mark (its
+/// first line was dropped, and the faces then used a vertex that was not there), and with
+/// lines ended by a lone carriage return (classic Mac) split as lines (the reader saw one
+/// line and reported a colour).
+pub(crate) fn obj_text<'a>(path: &Path, bytes: &'a [u8]) -> Result<Cow<'a, str>, GeometryError> {
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        bad(
+            path,
+            format!(
+                "the file is not UTF-8 text (byte {} is not): an OBJ file is text",
+                e.valid_up_to()
+            ),
+        )
+    })?;
+    Ok(if text.contains('\r') {
+        Cow::Owned(text.replace("\r\n", "\n").replace('\r', "\n"))
+    } else {
+        Cow::Borrowed(text)
+    })
 }

@@ -37,11 +37,12 @@ pub fn load_closed_surface(path: &Path, scale: f64) -> Result<Surface, SceneErro
         path: path.to_path_buf(),
         message,
     };
-    let file = std::fs::File::open(path).map_err(|e| load(e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| load(e.to_string()))?;
+    let text = file_guard::obj_text(path, &bytes)?;
     // Without the material libraries: `mtllib` could name any file, a device or a pipe
     // included, and the tissue needs no materials (file_guard module docs).
     let (models, _materials) = file_guard::guarded(path, || {
-        tobj::load_obj_buf(&mut std::io::BufReader::new(file), &options, |_| {
+        tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
             Ok((Vec::new(), HashMap::new()))
         })
         .map_err(|e| load(e.to_string()))
@@ -121,7 +122,8 @@ pub fn load_closed_stl(path: &Path, scale: f64) -> Result<Surface, SceneError> {
             bytes[..5].copy_from_slice(b"     ");
         }
     } else {
-        let start = bytes.len() - bytes.trim_ascii_start().len();
+        // The `solid` keyword in any case, after a byte order mark and blanks.
+        let start = bytes.len() - file_guard::stl_text_start(&bytes).len();
         bytes.splice(..start + 5, *b"solid ").for_each(drop);
     }
     let mesh = file_guard::guarded(path, || {
@@ -156,8 +158,15 @@ pub fn load_closed_vtk(path: &Path, scale: f64) -> Result<Surface, SceneError> {
     };
     let bytes = std::fs::read(path).map_err(|e| load(e.to_string()))?;
     file_guard::check_vtk(path, &bytes)?;
+    // The bytes just checked, not the file again (it may have changed since).
     let vtk = file_guard::guarded(path, || {
-        vtkio::Vtk::import(path).map_err(|e| load(e.to_string()))
+        if file_guard::is_xml(&bytes) {
+            let xml = file_guard::xml_for_reader(&bytes);
+            vtkio::Vtk::parse_xml(&xml[..])
+        } else {
+            vtkio::Vtk::parse_legacy_be(&bytes[..])
+        }
+        .map_err(|e| load(e.to_string()))
     })?;
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut triangles: Vec<[u32; 3]> = Vec::new();
