@@ -607,3 +607,49 @@ fn the_friction_slope_changes_at_each_layer_as_its_friction_per_length() {
         );
     }
 }
+
+/// A region bounded by a closed surface file: the octahedron `|x| + |y| + |z| < 1`,
+/// scaled to 3 cm and moved to the middle of a 10 cm cube, over an 11^3-node lattice.
+/// Every node farther than 1e-9 m from its faces is in the region exactly when it is
+/// inside the octahedron (the clustered winding number, `geometry::sampling::FastWinding`,
+/// against the closed form).
+#[test]
+fn a_region_bounded_by_a_surface_file_holds_the_nodes_inside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut obj = String::new();
+    for p in common::OCTAHEDRON_VERTICES {
+        obj.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
+    }
+    for t in common::OCTAHEDRON_TRIANGLES {
+        obj.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+    }
+    std::fs::write(dir.path().join("octa.obj"), obj).unwrap();
+    let scene = Scene::from_toml_str(
+        "[tissue]\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.1, 0.1, 0.1], \
+         spacing = 0.01 }\n[material]\nmodel = \"mass_spring\"\nstiffness = 100.0\n\
+         [[region]]\nname = \"core\"\ngeometry = { kind = \"obj\", path = \"octa.obj\", \
+         scale = 0.03, translate = [0.05, 0.05, 0.05] }\nmaterial = { stiffness = 200.0 }\n",
+        dir.path(),
+    )
+    .unwrap();
+    let t = Tissue::from_scene(&scene).unwrap();
+    let core = t.regions.names.iter().position(|n| n == "core").unwrap() as u16;
+    let (mut inside, mut checked) = (0, 0);
+    for (i, p) in t.state.positions[..t.n_mesh].iter().enumerate() {
+        let l1: f64 = (0..3).map(|a| (p[a] as f64 - 0.05).abs()).sum();
+        if (l1 - 0.03).abs() < 1e-9 {
+            continue;
+        }
+        checked += 1;
+        assert_eq!(
+            t.regions.of_node[i] == core,
+            l1 < 0.03,
+            "node {i} at {p:?} (|x - c|_1 = {l1})"
+        );
+        inside += usize::from(l1 < 0.03);
+    }
+    assert!(
+        inside >= 19 && checked > 1200,
+        "{inside} inside of {checked}"
+    );
+}
