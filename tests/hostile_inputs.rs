@@ -283,6 +283,89 @@ fn fuzzed_vtp_files_are_typed_errors_and_the_vtk_default_header_loads() {
     assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{}", t.volume);
 }
 
+/// Raw appended data, the default of VTK's and ParaView's writers: vtkio's XML reader
+/// failed at the first `<`, `>` or `&` byte among the data ("EndEventMismatch"); the file
+/// is now handed to it re-encoded as base64. The octahedron's coordinates are scaled to
+/// 2^-7 so that every one holds a `<` byte (0x3C); uncompressed, and zlib-compressed (the
+/// compressed arrays' other layout, at the first level whose stream holds a `<` if any).
+#[test]
+fn raw_appended_vtp_files_with_markup_bytes_load() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let points: Vec<u8> = OCTAHEDRON_VERTICES
+        .iter()
+        .flatten()
+        .flat_map(|x| (x / 128.0).to_le_bytes())
+        .collect();
+    assert!(points.contains(&b'<'));
+    let conn: Vec<u8> = OCTAHEDRON_TRIANGLES
+        .iter()
+        .flatten()
+        .flat_map(|&v| (v as i32).to_le_bytes())
+        .collect();
+    let offsets: Vec<u8> = (1..=8i32).flat_map(|k| (3 * k).to_le_bytes()).collect();
+    for compressed in [false, true] {
+        let encode = |data: &[u8]| -> Vec<u8> {
+            if !compressed {
+                return [(data.len() as u32).to_le_bytes().to_vec(), data.to_vec()].concat();
+            }
+            let z = (1..=9)
+                .map(|level| {
+                    let mut e = flate2::write::ZlibEncoder::new(
+                        Vec::new(),
+                        flate2::Compression::new(level),
+                    );
+                    e.write_all(data).unwrap();
+                    e.finish().unwrap()
+                })
+                .find(|z| z.contains(&b'<'))
+                .unwrap_or_else(|| {
+                    let mut e = flate2::write::ZlibEncoder::new(Vec::new(), Default::default());
+                    e.write_all(data).unwrap();
+                    e.finish().unwrap()
+                });
+            let n = data.len() as u32;
+            let mut out = Vec::new();
+            for w in [1, n, n, z.len() as u32] {
+                out.extend(w.to_le_bytes());
+            }
+            [out, z].concat()
+        };
+        let arrays = [encode(&points), encode(&conn), encode(&offsets)];
+        let (o1, o2) = (arrays[0].len(), arrays[0].len() + arrays[1].len());
+        let compressor = if compressed {
+            " compressor=\"vtkZLibDataCompressor\""
+        } else {
+            ""
+        };
+        let mut f = format!(
+            "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" \
+             byte_order=\"LittleEndian\" header_type=\"UInt32\"{compressor}>\n<PolyData>\n\
+             <Piece NumberOfPoints=\"6\" NumberOfPolys=\"8\">\n<Points><DataArray \
+             type=\"Float32\" NumberOfComponents=\"3\" format=\"appended\" offset=\"0\"/>\
+             </Points>\n<Polys><DataArray type=\"Int32\" Name=\"connectivity\" \
+             format=\"appended\" offset=\"{o1}\"/>\n<DataArray type=\"Int32\" \
+             Name=\"offsets\" format=\"appended\" offset=\"{o2}\"/></Polys>\n</Piece>\n\
+             </PolyData>\n<AppendedData encoding=\"raw\">\n   _"
+        )
+        .into_bytes();
+        for a in arrays {
+            f.extend(a);
+        }
+        f.extend(b"\n  </AppendedData>\n</VTKFile>\n");
+        let file = if compressed { "zlib.vtp" } else { "plain.vtp" };
+        std::fs::write(d.join(file), f).unwrap();
+        let scene = Scene::from_toml_str(
+            &surface_scene("vtk", file).replace("spacing = 0.25", "spacing = 0.25, scale = 128.0"),
+            d,
+        )
+        .unwrap();
+        let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!((t.volume - 4.0 / 3.0).abs() < 1e-5, "{file}: {}", t.volume);
+    }
+}
+
 /// OBJ and STL text that the readers misread: a byte order mark (an OBJ dropped its first
 /// vertex; an STL was taken for binary), lone carriage returns ending the lines (one
 /// line, "color parse error"), `SOLID` in capitals, and bytes that are not UTF-8 ("read

@@ -24,7 +24,18 @@
 //!   header encoded on its own, then the blocks together). Inline compressed arrays are
 //!   left to vtkio, which does not inflate them (it fails them on their size);
 //! - binary STL: the triangle count in its header must match the file's size (84 + 50 n
-//!   bytes); a file that starts with `solid` is read as ASCII.
+//!   bytes); a file that starts with `solid` (any case, after a byte order mark) is read
+//!   as ASCII.
+//!
+//! A fuzzing pass (about 5,400 damaged and crafted files, issue 45) found ways past the
+//! first version of these checks, each now closed and tested (`tests/hostile_inputs.rs`):
+//! a legacy file not starting with its header line, or with a count on the line of
+//! another keyword, skipped or missed the checks; attribute counts (`SCALARS`,
+//! `LOOKUP_TABLE`, `COLOR_SCALARS`, `TEXTURE_COORDINATES`, `FIELD` arrays) were not
+//! checked; XML attributes in single quotes or spaced round their `=` were not seen; a
+//! file without `header_type` was checked with 4-byte words and read with 8. The reader
+//! is given the checked bytes (not the file again), with VTK's default `header_type`
+//! written in and raw appended data re-encoded as base64 ([`xml_for_reader`]).
 //!
 //! OBJ files are read without their material libraries (`mtllib` would open any file the
 //! OBJ names, a device or a pipe included; the tissue needs no materials).
@@ -171,6 +182,8 @@ pub(crate) fn is_xml(bytes: &[u8]) -> bool {
 /// headers of compressed data (files of format version 0.1 have no attribute), but
 /// vtkio assumes UInt64: such a file failed with a size mismatch, and the compression
 /// check, which read 4-byte words, could be passed by a header vtkio read otherwise.
+///
+/// Raw appended data is handed over re-encoded as base64 ([`raw_appended_as_base64`]).
 pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
     let Some(at) = find(bytes, b"<VTKFile") else {
         return Cow::Borrowed(bytes);
@@ -179,16 +192,118 @@ pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
         .iter()
         .position(|&b| b == b'>')
         .map_or(bytes.len(), |e| at + e);
-    let tag = String::from_utf8_lossy(&bytes[at..end]);
-    if attribute(&tag, "header_type").is_some() {
-        return Cow::Borrowed(bytes);
+    let tag = String::from_utf8_lossy(&bytes[at..end]).into_owned();
+    let patched: Cow<'_, [u8]> = if attribute(&tag, "header_type").is_some() {
+        Cow::Borrowed(bytes)
+    } else {
+        let insert = at + b"<VTKFile".len();
+        let mut out = Vec::with_capacity(bytes.len() + 24);
+        out.extend_from_slice(&bytes[..insert]);
+        out.extend_from_slice(b" header_type=\"UInt32\"");
+        out.extend_from_slice(&bytes[insert..]);
+        Cow::Owned(out)
+    };
+    let word = if attribute(&tag, "header_type") == Some("UInt64") {
+        8
+    } else {
+        4
+    };
+    let compressed = attribute(&tag, "compressor").is_some_and(|c| !c.is_empty());
+    match raw_appended_as_base64(&patched, word, compressed) {
+        Some(b) => Cow::Owned(b),
+        None => patched,
     }
-    let insert = at + b"<VTKFile".len();
-    let mut out = Vec::with_capacity(bytes.len() + 24);
-    out.extend_from_slice(&bytes[..insert]);
-    out.extend_from_slice(b" header_type=\"UInt32\"");
-    out.extend_from_slice(&bytes[insert..]);
-    Cow::Owned(out)
+}
+
+/// The file with its raw appended data re-encoded as base64, laid out as VTK writes
+/// base64 appended data (an uncompressed array's size word and bytes encoded together; a
+/// compressed array's block header encoded on its own, then its blocks), with every
+/// appended array's `offset` moved to its place in the encoded text. vtkio's XML reader
+/// takes raw appended bytes as text and fails at the first `<`, `>` or `&` among them,
+/// so a raw-appended file as ParaView and VTK write it (their default) could not be read.
+/// `None` when the file has no raw appended data or its arrays cannot be delimited (the
+/// reader then gets it as it is).
+fn raw_appended_as_base64(bytes: &[u8], word: usize, compressed: bool) -> Option<Vec<u8>> {
+    let tag_at = find(bytes, b"<AppendedData")?;
+    let tag_end = tag_at + bytes[tag_at..].iter().position(|&b| b == b'>')?;
+    let tag = String::from_utf8_lossy(&bytes[tag_at..tag_end]).into_owned();
+    if attribute(&tag, "encoding") != Some("raw") {
+        return None;
+    }
+    let data_at = tag_end + bytes[tag_end..].iter().position(|&b| b == b'_')? + 1;
+    let close = b"</AppendedData>";
+    let data_end = bytes
+        .windows(close.len())
+        .rposition(|w| w == close)
+        .filter(|&e| e >= data_at)?;
+    let data = &bytes[data_at..data_end];
+    let number = |at: usize| -> Option<usize> {
+        let w = data.get(at..at.checked_add(word)?)?;
+        let v = match word {
+            8 => u64::from_le_bytes(w.try_into().ok()?),
+            _ => u32::from_le_bytes(w.try_into().ok()?) as u64,
+        };
+        usize::try_from(v).ok()
+    };
+    // Appended DataArray tags before the data: (offset value's byte range, offset).
+    let head = &bytes[..tag_at];
+    let mut arrays: Vec<(std::ops::Range<usize>, usize)> = Vec::new();
+    let mut from = 0;
+    while let Some(i) = find(&head[from..], b"<DataArray") {
+        let start = from + i;
+        let end = start + head[start..].iter().position(|&b| b == b'>')?;
+        from = end;
+        let text = std::str::from_utf8(&head[start..end]).ok()?;
+        if attribute(text, "format") != Some("appended") {
+            continue;
+        }
+        let value = attribute(text, "offset")?;
+        let offset: usize = value.trim().parse().ok()?;
+        // The value's place in the file: attribute() returned a slice of `text`.
+        let at = start + (value.as_ptr() as usize - text.as_ptr() as usize);
+        arrays.push((at..at + value.len(), offset));
+    }
+    let mut offsets: Vec<usize> = arrays.iter().map(|a| a.1).collect();
+    offsets.sort_unstable();
+    offsets.dedup();
+    let mut encoded = String::new();
+    let mut moved = std::collections::HashMap::new();
+    for &o in &offsets {
+        let (header_len, body_len) = if compressed {
+            let blocks = number(o)?;
+            let header_len = blocks.checked_add(3)?.checked_mul(word)?;
+            let mut body = 0usize;
+            for k in 0..blocks {
+                body = body.checked_add(number(o + (3 + k) * word)?)?;
+            }
+            (header_len, body)
+        } else {
+            (word, number(o)?)
+        };
+        let end = o.checked_add(header_len)?.checked_add(body_len)?;
+        let array = data.get(o..end)?;
+        moved.insert(o, encoded.len());
+        if compressed {
+            encoded.push_str(&base64::encode(&array[..header_len]));
+            encoded.push_str(&base64::encode(&array[header_len..]));
+        } else {
+            encoded.push_str(&base64::encode(array));
+        }
+    }
+    arrays.sort_by_key(|a| a.0.start);
+    let mut out = Vec::with_capacity(tag_at + encoded.len() + 64);
+    let mut copied = 0;
+    for (range, offset) in &arrays {
+        out.extend_from_slice(&bytes[copied..range.start]);
+        out.extend_from_slice(moved[offset].to_string().as_bytes());
+        copied = range.end;
+    }
+    out.extend_from_slice(&bytes[copied..tag_at]);
+    out.extend_from_slice(b"<AppendedData encoding=\"base64\">\n_");
+    out.extend_from_slice(encoded.as_bytes());
+    out.extend_from_slice(b"\n");
+    out.extend_from_slice(&bytes[data_end..]);
+    Some(out)
 }
 
 /// The first position of `needle` in `haystack`.
