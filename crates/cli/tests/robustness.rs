@@ -225,23 +225,43 @@ fn extreme_needle_directions_normalise() {
     assert!(unit([0.0; 3]).is_err());
 }
 
-/// A surface file that makes its reader panic (legacy VTK whose POLYGONS count disagrees
-/// with its cell list: vtkio asserts) is one error naming the file, without Rust's panic
+/// A surface file that makes its reader panic (binary legacy VTK whose POLYGONS count
+/// disagrees with its cell list: vtkio asserts; an ASCII one is now caught before the
+/// reader, naming the cell list) is one error naming the file, without Rust's panic
 /// message before it.
 #[test]
 fn a_reader_panic_is_one_error_without_a_panic_message() {
     let dir = tempfile::tempdir().unwrap();
     let mut vtk =
-        String::from("# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 6 float\n");
-    for v in ["1 0 0", "-1 0 0", "0 1 0", "0 -1 0", "0 0 1", "0 0 -1"] {
-        vtk += &format!("{v}\n");
-    }
-    vtk += "POLYGONS 1 32\n";
-    for t in [
-        "0 2 4", "2 1 4", "1 3 4", "3 0 4", "2 0 5", "1 2 5", "3 1 5", "0 3 5",
+        b"# vtk DataFile Version 3.0\nx\nBINARY\nDATASET POLYDATA\nPOINTS 6 float\n".to_vec();
+    for v in [
+        [1.0f32, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
     ] {
-        vtk += &format!("3 {t}\n");
+        for c in v {
+            vtk.extend(c.to_be_bytes());
+        }
     }
+    vtk.extend(b"\nPOLYGONS 1 32\n");
+    for t in [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ] {
+        for v in [3i32, t[0], t[1], t[2]] {
+            vtk.extend(v.to_be_bytes());
+        }
+    }
+    vtk.extend(b"\n");
     std::fs::write(dir.path().join("bad.vtk"), vtk).unwrap();
     let scene = dir.path().join("bad.toml");
     std::fs::write(
