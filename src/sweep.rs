@@ -56,10 +56,55 @@ pub fn parse_vary(spec: &str) -> Result<(String, Vec<toml::Value>), SweepError> 
     if key.is_empty() || values.trim().is_empty() {
         return Err(SweepError::Vary(spec.into()));
     }
+    let words = split_values(values).map_err(|problem| SweepError::Key {
+        key: key.to_string(),
+        problem,
+    })?;
     Ok((
         key.to_string(),
-        values.split(',').map(|v| parse_value(v.trim())).collect(),
+        words.iter().map(|v| parse_value(v.trim())).collect(),
     ))
+}
+
+/// The comma-separated values of a `--vary`, commas inside brackets, braces or quotes
+/// kept (`[-0.11,0.05,0.05],[-0.11,0.04,0.05]` is two arrays; it was six fragments, each
+/// taken as a string); an unclosed bracket or quote is an error.
+fn split_values(values: &str) -> Result<Vec<&str>, String> {
+    let (mut out, mut start, mut depth) = (Vec::new(), 0usize, 0i64);
+    let mut quote: Option<char> = None;
+    let mut escaped = false;
+    for (i, c) in values.char_indices() {
+        if let Some(q) = quote {
+            if escaped {
+                escaped = false;
+            } else if c == '\\' && q == '"' {
+                escaped = true;
+            } else if c == q {
+                quote = None;
+            }
+            continue;
+        }
+        match c {
+            '"' | '\'' => quote = Some(c),
+            '[' | '{' => depth += 1,
+            ']' | '}' => {
+                depth -= 1;
+                if depth < 0 {
+                    return Err(format!("`{values}` closes a bracket it never opened"));
+                }
+            }
+            ',' if depth == 0 => {
+                out.push(&values[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    if quote.is_some() || depth != 0 {
+        return Err(format!("`{values}` leaves a quote or bracket open"));
+    }
+    out.push(&values[start..]);
+    Ok(out)
 }
 
 /// Parses every `--vary` argument ([`parse_vary`]); a key given twice is an error (its
@@ -323,5 +368,30 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("index 3 past the 1 entries"), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod vary_tests {
+    use super::*;
+
+    #[test]
+    fn commas_inside_arrays_and_strings_do_not_split_values() {
+        let (key, v) = parse_vary("needle.base=[-0.11,0.05,0.05], [-0.11,0.04,0.05]").unwrap();
+        assert_eq!(key, "needle.base");
+        assert_eq!(v.len(), 2);
+        assert_eq!(v[1], parse_value("[-0.11, 0.04, 0.05]"));
+        let (_, v) = parse_vary("name=\"a, b\",'c,d',e").unwrap();
+        assert_eq!(
+            v,
+            vec![
+                toml::Value::String("a, b".into()),
+                toml::Value::String("c,d".into()),
+                toml::Value::String("e".into())
+            ]
+        );
+        assert!(parse_vary("x=[1,2").is_err());
+        assert!(parse_vary("x=1]").is_err());
+        assert!(parse_vary("x=\"open").is_err());
     }
 }

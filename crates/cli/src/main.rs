@@ -609,11 +609,29 @@ fn sweep(
 ) -> Result<()> {
     use needlesim::sweep;
     let (scene, stem, text) = load_with_text(&scene_path)?;
+    if scene.needle.is_none() {
+        anyhow::bail!(
+            "a sweep records the needle's force and depth every step, and this scene has no \
+             [needle] table: nothing to record (`needlesim run` it, or add a needle)"
+        );
+    }
     let vary = sweep::parse_vary_all(vary)?;
     let variants = sweep::grid(&vary);
     // Every override must apply to the scene before anything runs (a typo fails at once).
     for v in &variants {
         sweep::apply(&text.toml, v)?;
+    }
+    // ... and name a key the scene's tables know: a misspelt last part applied (a new
+    // key may be an optional one) and then failed every variant on its own.
+    for (key, values) in &vary {
+        let one = sweep::apply(&text.toml, &[(key.clone(), values[0].clone())])?;
+        if let Err(e) = Scene::from_toml_str(&one, &scene.base_dir) {
+            let last = key.rsplit('.').next().unwrap_or(key);
+            let message = e.to_string();
+            if message.contains(&format!("unknown field `{last}`")) {
+                anyhow::bail!("--vary {key}: the scene does not know this key: {message}");
+            }
+        }
     }
     // clap refuses 0 and more than 4096.
     let jobs = jobs.map_or_else(
@@ -652,6 +670,7 @@ fn sweep(
         .with_context(|| format!("writing {}", out.display()))?;
     let t0 = std::time::Instant::now();
     let (mut failed, mut finished, mut interrupted) = (0, 0, 0);
+    let mut first_error: Option<String> = None;
     let mut write_error: Option<csv::Error> = None;
     let mut write =
         |i: usize, r: Result<sweep::VariantRun, sweep::SweepError>| -> csv::Result<()> {
@@ -682,6 +701,7 @@ fn sweep(
                 Err(e) => {
                     failed += 1;
                     let msg = e.to_string();
+                    first_error.get_or_insert_with(|| msg.clone());
                     record(std::array::from_fn(|k| {
                         if k == 6 {
                             msg.clone()
@@ -723,6 +743,13 @@ fn sweep(
                 variants.len() - finished - failed - interrupted
             )
         });
+    }
+    if failed > 0 && failed == variants.len() {
+        anyhow::bail!(
+            "every one of the {failed} variants failed (their errors are in {}); the first: {}",
+            out.display(),
+            first_error.unwrap_or_default()
+        );
     }
     say!(
         "sweep       {} variants ({failed} failed) on {jobs} threads in {wall:.1} s ({:.1} variants/min)\nwritten     {}",

@@ -444,6 +444,73 @@ fn sweep_refuses_a_key_varied_twice() {
     assert!(!csv.exists(), "a CSV was written");
 }
 
+/// What a fuzzing pass found in sweeps (issue 45): a misspelt last key part ran every
+/// variant into the same error and exited 0; a sweep where every variant failed exited
+/// 0; a scene without a needle wrote a header and no row; and array values were split at
+/// their commas into string fragments. The first three are errors now (no CSV for the
+/// first and third), and arrays sweep whole.
+#[test]
+fn sweep_names_unknown_keys_and_needleless_scenes_and_keeps_arrays_whole() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = tempfile::tempdir().unwrap();
+    let sweep = |scene: &str, vary: &str, csv: &std::path::Path| {
+        let o = needlesim()
+            .arg("sweep")
+            .arg(root.join(scene))
+            .args(["--vary", vary, "--steps", "5", "--out"])
+            .arg(csv)
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let csv = dir.path().join("typo.csv");
+    let (ok, stderr) = sweep(
+        "scenes/needle_insert_extract.toml",
+        "material.stifness=1,2",
+        &csv,
+    );
+    assert!(
+        !ok && stderr.contains("--vary material.stifness"),
+        "{stderr}"
+    );
+    assert!(!csv.exists(), "a CSV was written");
+    let csv = dir.path().join("bad.csv");
+    let (ok, stderr) = sweep(
+        "scenes/needle_insert_extract.toml",
+        "material.stiffness=-1,-2",
+        &csv,
+    );
+    assert!(
+        !ok && stderr.contains("every one of the 2 variants failed"),
+        "{stderr}"
+    );
+    let csv = dir.path().join("none.csv");
+    let (ok, stderr) = sweep(
+        "scenes/cube_sag_msm.toml",
+        "material.stiffness=50,100",
+        &csv,
+    );
+    assert!(!ok && stderr.contains("no [needle]"), "{stderr}");
+    assert!(!csv.exists(), "a CSV was written");
+    let csv = dir.path().join("arrays.csv");
+    let (ok, stderr) = sweep(
+        "scenes/needle_insert_extract.toml",
+        "needle.base=[-0.11,0.0513,0.0487],[-0.11,0.05,0.05]",
+        &csv,
+    );
+    assert!(ok, "{stderr}");
+    let mut rows = csv::Reader::from_path(&csv).unwrap();
+    let bases: std::collections::BTreeSet<String> =
+        rows.records().map(|r| r.unwrap()[1].to_string()).collect();
+    assert_eq!(
+        bases.into_iter().collect::<Vec<_>>(),
+        ["[-0.11, 0.05, 0.05]", "[-0.11, 0.0513, 0.0487]"]
+    );
+}
+
 /// `needlesim sweep` runs the grid of the --vary values on two threads: every variant's
 /// needle force history is bitwise the one of the same scene run alone (one CPU thread,
 /// in this process), and a failing variant gets its error while the others complete.

@@ -26,6 +26,26 @@ pub enum NeedleError {
     /// The roll angle is not finite.
     #[error("needle roll must be a finite angle in radians, got {0}")]
     BadRoll(f64),
+    /// The base lies beyond [`MAX_BASE_DISTANCE`] of the origin.
+    #[error(
+        "needle base must lie within {MAX_BASE_DISTANCE:e} m of the origin (the tissue's \
+         positions are f32), got {0:?}"
+    )]
+    FarBase([f64; 3]),
+}
+
+/// The farthest a needle's base may be from the origin, m: the tissue is stored in f32,
+/// and a base at 1e300 m overflowed the contact's sweep to infinity, where its checks
+/// (the move across the body in one step) compared NaN and let the pose through.
+pub const MAX_BASE_DISTANCE: f64 = 1e30;
+
+/// `base` as a point, or the error naming it if not finite or too far.
+fn base_point(base: [f64; 3]) -> Result<DVec3, NeedleError> {
+    let b = finite("base", base)?;
+    if b.abs().max_element() > MAX_BASE_DISTANCE {
+        return Err(NeedleError::FarBase(base));
+    }
+    Ok(b)
 }
 
 /// A rigid straight needle.
@@ -64,7 +84,7 @@ pub fn unit(v: [f64; 3]) -> Result<[f64; 3], NeedleError> {
 impl Needle {
     /// A needle from its base, a direction (normalised here) and its length in metres.
     pub fn new(base: [f64; 3], direction: [f64; 3], length: f64) -> Result<Needle, NeedleError> {
-        let base = finite("base", base)?;
+        let base = base_point(base)?;
         if !(length.is_finite() && length > 0.0) {
             return Err(NeedleError::BadLength(length));
         }
@@ -113,7 +133,7 @@ impl Needle {
 
     /// Moves the needle to a new pose (same length and roll).
     pub fn set_pose(&mut self, base: [f64; 3], direction: [f64; 3]) -> Result<(), NeedleError> {
-        let base = finite("base", base)?;
+        let base = base_point(base)?;
         self.direction = DVec3::from_array(unit(direction)?);
         self.base = base;
         Ok(())
@@ -131,6 +151,18 @@ impl Needle {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_base_beyond_f32s_range_is_an_error() {
+        let mut n = Needle::new([0.0, 1.0, 0.0], [2.0, 0.0, 0.0], 0.15).unwrap();
+        let far = [1e300, 0.0513, 0.0487];
+        assert_eq!(
+            n.set_pose(far, [1.0, 0.0, 0.0]),
+            Err(NeedleError::FarBase(far))
+        );
+        assert!(Needle::new(far, [1.0, 0.0, 0.0], 0.1).is_err());
+        assert!(n.set_pose([1e29, 0.0, 0.0], [1.0, 0.0, 0.0]).is_ok());
+    }
 
     #[test]
     fn tip_projection_and_bad_poses() {

@@ -52,6 +52,8 @@ impl PySineDevice {
                 "SineDevice: start, direction, amplitude and frequency must be finite",
             ));
         }
+        needlesim::needle::needle::unit(direction)
+            .map_err(|e| value_error(format!("SineDevice: {e}")))?;
         Ok(PySineDevice(SineDevice {
             start,
             direction,
@@ -238,6 +240,15 @@ impl PyHapticLoop {
             .handle
             .as_ref()
             .ok_or_else(|| value_error("set_device needs the default device (device=None)"))?;
+        // Checked here, where the caller can be told, not on the loop's thread (a NaN
+        // stopped the loop and surfaced only from `stop()`).
+        if !position.iter().all(|c| c.is_finite()) {
+            return Err(value_error(format!(
+                "set_device: position must be finite, got {position:?}"
+            )));
+        }
+        needlesim::needle::needle::unit(direction)
+            .map_err(|e| value_error(format!("set_device: {e}")))?;
         h.set_pose(position, direction);
         Ok(())
     }

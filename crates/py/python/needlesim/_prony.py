@@ -103,10 +103,21 @@ def fit_prony(
         raise ValueError(f"terms must be 1 to 4 (the kernels' bound), got {terms}")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(f))):
         raise ValueError("time and force must be finite")
-    keep = t >= (ramp if t_min is None else t_min)
+    if t.size > 1 and not np.all(np.diff(t) > 0):
+        # A reversed or repeated time axis gave a meaningless fit without a word.
+        raise ValueError("time must increase strictly from sample to sample")
+    if not (np.isfinite(ramp) and ramp >= 0):
+        raise ValueError(f"ramp must be a finite time >= 0 in s, got {ramp}")
+    if t_min is not None and not np.isfinite(t_min):
+        raise ValueError(f"t_min must be a finite time in s, got {t_min}")
+    start = ramp if t_min is None else t_min
+    keep = t >= start
     t, f = t[keep], f[keep]
     if t.size < 2 * terms + 2:
-        raise ValueError(f"{t.size} points after t_min: too few for {terms} terms")
+        which = "ramp" if t_min is None else "t_min"
+        raise ValueError(
+            f"{t.size} points at or after {which} = {start} s: too few for {terms} terms"
+        )
     sign = 1.0 if np.mean(f) >= 0 else -1.0
     f = sign * f
     span = (max(t.min(), 1e-6), t.max())
