@@ -44,9 +44,18 @@ def test_the_shared_device_and_bad_settings():
         needlesim.HapticLoop(sim, stiffness=-1.0)
     with pytest.raises(ValueError, match="clock"):
         needlesim.SineDevice((0, 0, 0), (1, 0, 0), 0.01, 1.0, clock="sundial")
+    with pytest.raises(ValueError, match="direction"):
+        needlesim.SineDevice((0, 0, 0), (0, 0, 0), 0.01, 1.0)
     loop = needlesim.HapticLoop(sim)
     with pytest.raises(RuntimeError, match="another haptic loop"):
         needlesim.HapticLoop(sim)
+    # A bad pose is refused where it is given (it stopped the loop's thread, and the
+    # error surfaced only from stop()).
+    with pytest.raises(ValueError, match="position must be finite"):
+        loop.set_device((float("nan"), 0.0, 0.0), (1.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="direction"):
+        loop.set_device((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    assert loop.running
     base = sim.base
     # Moved 5 mm back, outside the tissue: the needle follows the device (critically
     # damped at 387 rad/s, settled in 0.05 s) and the force returns to zero.

@@ -128,6 +128,14 @@ def test_shapes_and_dtypes_are_as_documented():
     assert sim.backend.startswith("cpu")
 
 
+def test_a_needle_base_beyond_f32s_range_is_refused():
+    # At 1e300 m the contact's sweep overflowed and its checks let the pose through.
+    sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
+    sim.step(5)
+    with pytest.raises(Exception, match="within 1e30 m"):
+        sim.set_pose((1e300, 0.0513, 0.0487), (1.0, 0.0, 0.0))
+
+
 def test_set_pose_drives_the_needle():
     sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
     base, d = sim.base, sim.direction
@@ -401,3 +409,8 @@ def test_fit_prony_recovers_the_series_of_a_simulated_relaxation():
         needlesim.fit_prony(t, np.linspace(0.1, 0.2, t.size))
     with pytest.raises(ValueError, match="terms"):
         needlesim.fit_prony(t, f, terms=5)
+    # A reversed time axis gave a meaningless fit without a word.
+    with pytest.raises(ValueError, match="time must increase"):
+        needlesim.fit_prony(t[::-1], noisy)
+    with pytest.raises(ValueError, match="ramp"):
+        needlesim.fit_prony(t, noisy, ramp=float("nan"))
