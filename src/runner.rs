@@ -424,6 +424,16 @@ pub fn run_scene(
     let every = scene.run.output_every;
     // Held until the run returns: no other run clears or appends to this folder meanwhile.
     let _lock = if options.write_files {
+        // An existing file (or device) there is no folder: "File exists" named no cause.
+        if options.out_dir.exists() && !options.out_dir.is_dir() {
+            return Err(RunError::Io {
+                path: options.out_dir.clone(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    "the output folder is an existing file, not a folder: give another --out",
+                ),
+            });
+        }
         std::fs::create_dir_all(&options.out_dir).map_err(io_error(&options.out_dir))?;
         Some(
             crate::folder_lock::FolderLock::acquire(&options.out_dir).map_err(|e| match e {

@@ -446,10 +446,17 @@ fn run(cli: Cli) -> Result<()> {
                 Vec::new()
             };
             let summary = summary.with_context(|| {
-                format!(
-                    "running scene `{stem}` (output so far, complete up to its last frame: {})",
-                    out.display()
-                )
+                // Only a run that wrote frames left output to point at (a configuration
+                // error, a held or unusable folder, wrote none).
+                if out.join("frames.csv").is_file() {
+                    format!(
+                        "running scene `{stem}` (output so far, complete up to its last \
+                         frame: {})",
+                        out.display()
+                    )
+                } else {
+                    format!("running scene `{stem}`")
+                }
             })?;
             for w in &summary.warnings {
                 eprintln!("warning: {w}");

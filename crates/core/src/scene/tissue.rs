@@ -235,9 +235,13 @@ impl TissueSpec {
             return Err(SceneError::invalid(
                 "tissue.neighbours",
                 format!(
-                    "must be between {MIN_NEIGHBOURS} and 64, got {} (fewer neighbours cannot \
-                     hold a 3D body together)",
-                    t.neighbours
+                    "must be between {MIN_NEIGHBOURS} and 64, got {} ({})",
+                    t.neighbours,
+                    if t.neighbours < MIN_NEIGHBOURS {
+                        "fewer neighbours cannot hold a 3D body together"
+                    } else {
+                        "the kernels' neighbour rows hold at most 64"
+                    }
                 ),
             ));
         }
