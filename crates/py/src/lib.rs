@@ -75,7 +75,15 @@ fn to_toml_at(obj: &Bound<'_, PyAny>, key: &str, depth: usize) -> PyResult<toml:
         return Ok(toml::Value::Boolean(obj.extract()?));
     }
     if obj.is_instance_of::<PyInt>() {
-        return Ok(toml::Value::Integer(obj.extract()?));
+        // TOML integers are 64-bit: a larger one names its key (Python's own
+        // OverflowError named none).
+        return obj.extract().map(toml::Value::Integer).map_err(|_| {
+            value_error(format!(
+                "scene key `{key}`: {} does not fit a 64-bit integer",
+                obj.str()
+                    .map_or_else(|_| "the integer".into(), |s| s.to_string())
+            ))
+        });
     }
     if obj.is_instance_of::<PyFloat>() {
         return Ok(toml::Value::Float(obj.extract()?));

@@ -128,6 +128,19 @@ def test_shapes_and_dtypes_are_as_documented():
     assert sim.backend.startswith("cpu")
 
 
+def test_a_scene_integer_beyond_64_bits_names_its_key():
+    # Python's OverflowError named no key.
+    scene = {
+        "tissue": {
+            "density": 1000.0,
+            "geometry": {"kind": "box", "min": [0, 0, 0], "max": [0.1, 0.1, 0.1], "nodes": 2**70},
+        },
+        "material": {"model": "mass_spring", "stiffness": 1.0},
+    }
+    with pytest.raises(ValueError, match="tissue.geometry.nodes"):
+        needlesim.Simulation.from_dict(scene)
+
+
 def test_a_needle_base_beyond_f32s_range_is_refused():
     # At 1e300 m the contact's sweep overflowed and its checks let the pose through.
     sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
