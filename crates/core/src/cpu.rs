@@ -42,12 +42,16 @@ pub const MAX_THREADS: usize = 1024;
 
 /// Error building a thread pool.
 #[derive(Debug, thiserror::Error)]
-#[error("cannot create a pool of {threads} threads{}: {message}", match source_name {
-    Some(s) => format!(" (from {s})"),
-    None => String::new(),
-})]
+#[error("cannot create a thread pool{}{}: {message}",
+    if *threads > 0 { format!(" of {threads} threads") } else { String::new() },
+    match source_name {
+        Some(s) => format!(" (from {s})"),
+        None => String::new(),
+    }
+)]
 pub struct ThreadPoolError {
-    /// Threads asked for.
+    /// Threads asked for (0 when the count could not be read: `RAYON_NUM_THREADS=abc`
+    /// said "a pool of 0 threads").
     pub threads: usize,
     /// Where the count came from when not from the caller (`RAYON_NUM_THREADS`).
     pub source_name: Option<&'static str>,

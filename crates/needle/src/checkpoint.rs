@@ -317,9 +317,14 @@ impl Checkpoint {
     pub fn read(path: impl AsRef<Path>) -> Result<Checkpoint, CheckpointError> {
         let path = path.as_ref();
         needlesim_core::scene::check_input_file(path, u64::MAX, "checkpoint").map_err(|e| {
+            // The reason alone: the file is no scene key ("scene key `checkpoint`" misled).
+            let reason = match e {
+                needlesim_core::SceneError::InvalidValue { reason, .. } => reason,
+                other => other.to_string(),
+            };
             CheckpointError::Io {
                 path: path.to_path_buf(),
-                source: std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()),
+                source: std::io::Error::new(std::io::ErrorKind::InvalidInput, reason),
             }
         })?;
         let bytes = std::fs::read(path).map_err(|source| CheckpointError::Io {
