@@ -105,8 +105,6 @@ pub struct CpuBackend {
     pool: Option<rayon::ThreadPool>,
     parallel: bool,
     steps: u64,
-    /// The frame the tissue's positions are stored in ([`crate::frame`]).
-    frame: PositionFrame,
 }
 
 impl CpuBackend {
@@ -148,13 +146,11 @@ impl CpuBackend {
                 (Some(pool), n > 1)
             }
         };
-        let frame = tissue.frame;
         Ok(CpuBackend {
             tissue,
             pool,
             parallel,
             steps: 0,
-            frame,
         })
     }
 
@@ -260,20 +256,16 @@ impl Backend for CpuBackend {
             NodeField::PositionRemainder | NodeField::StoredRemainder => &s.position_remainders,
         };
         out.copy_from_slice(&src[range.clone()]);
-        if !self.frame.is_world() {
-            let f = self.frame;
-            match field {
-                NodeField::Position => out.iter_mut().for_each(|p| *p = f.to_world(*p)),
-                NodeField::PositionRemainder => {
-                    for (r, p) in out.iter_mut().zip(&s.positions[range]) {
-                        *r = f.world_remainder(*p, *r);
-                    }
-                }
-                NodeField::Velocity
-                | NodeField::Force
-                | NodeField::StoredPosition
-                | NodeField::StoredRemainder => {}
-            }
+        match field {
+            NodeField::Position => self.tissue.frame.positions_to_world(out),
+            NodeField::PositionRemainder => self
+                .tissue
+                .frame
+                .remainders_to_world(out, &s.positions[range]),
+            NodeField::Velocity
+            | NodeField::Force
+            | NodeField::StoredPosition
+            | NodeField::StoredRemainder => {}
         }
         Ok(())
     }
@@ -294,13 +286,13 @@ impl Backend for CpuBackend {
         };
         dst[range.clone()].copy_from_slice(data);
         if field == NodeField::Position {
-            self.frame.slice_to_frame(&mut dst[range]);
+            self.tissue.frame.slice_to_frame(&mut dst[range]);
         }
         Ok(())
     }
 
     fn position_frame(&self) -> PositionFrame {
-        self.frame
+        self.tissue.frame
     }
 
     fn write_neighbour_rows(

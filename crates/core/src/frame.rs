@@ -14,8 +14,8 @@
 //!
 //! Every force of every model depends only on differences of positions and differences
 //! of rest positions (`x_j - x_i`, `X_j - X_i`), never on a position itself, so the
-//! positions may live in a translated frame while the rest positions in the shape arrays
-//! stay in world coordinates.
+//! positions and the rest positions may live in a translated frame: the tissue builds
+//! both in it ([`crate::tissue::Tissue::frame`]), from the f64 node cloud, rounding once.
 //!
 //! # The origin
 //!
@@ -102,25 +102,15 @@ impl PositionFrame {
     /// A world position (xyz; w kept) in this frame.
     #[inline]
     pub fn to_frame(&self, world: Vec4) -> Vec4 {
-        let o = self.origin;
-        [
-            (world[0] as f64 - o[0]) as f32,
-            (world[1] as f64 - o[1]) as f32,
-            (world[2] as f64 - o[2]) as f32,
-            world[3],
-        ]
+        let q = self.local([world[0] as f64, world[1] as f64, world[2] as f64]);
+        [q[0], q[1], q[2], world[3]]
     }
 
     /// A stored position (xyz; w kept) in world coordinates, rounded to f32.
     #[inline]
     pub fn to_world(&self, stored: Vec4) -> Vec4 {
-        let o = self.origin;
-        [
-            (stored[0] as f64 + o[0]) as f32,
-            (stored[1] as f64 + o[1]) as f32,
-            (stored[2] as f64 + o[2]) as f32,
-            stored[3],
-        ]
+        let w = self.global([stored[0], stored[1], stored[2]]);
+        [w[0] as f32, w[1] as f32, w[2] as f32, stored[3]]
     }
 
     /// The world position's part below f32 resolution: what [`PositionFrame::to_world`]
@@ -133,6 +123,25 @@ impl PositionFrame {
             ((exact - exact as f32 as f64) + remainder[a] as f64) as f32
         };
         [part(0), part(1), part(2), remainder[3]]
+    }
+
+    /// Stored positions, read into `out`, as a read of world positions gives them
+    /// ([`PositionFrame::to_world`]; nothing to do in the world frame).
+    pub fn positions_to_world(&self, out: &mut [Vec4]) {
+        if !self.is_world() {
+            out.iter_mut().for_each(|p| *p = self.to_world(*p));
+        }
+    }
+
+    /// Stored remainders, read into `out`, as a read of world remainders gives them, from
+    /// the stored positions `stored` of the same nodes ([`PositionFrame::world_remainder`];
+    /// nothing to do in the world frame).
+    pub fn remainders_to_world(&self, out: &mut [Vec4], stored: &[Vec4]) {
+        if !self.is_world() {
+            for (r, p) in out.iter_mut().zip(stored) {
+                *r = self.world_remainder(*p, *r);
+            }
+        }
     }
 
     /// [`PositionFrame::to_frame`] on every element (nothing to do in the world frame).

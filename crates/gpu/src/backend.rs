@@ -638,17 +638,13 @@ impl Backend for GpuBackend {
             self.pieces(NodeField::Position, &requests[*i].1, out, &mut pieces)?;
         }
         self.read_pieces(pieces)?;
-        if !frame.is_world() {
-            for ((field, _), out) in requests.iter().zip(outs.iter_mut()) {
-                if *field == NodeField::Position {
-                    out.iter_mut().for_each(|p| *p = frame.to_world(*p));
-                }
+        for ((field, _), out) in requests.iter().zip(outs.iter_mut()) {
+            if *field == NodeField::Position {
+                frame.positions_to_world(out);
             }
-            for (i, positions) in stored {
-                for (r, p) in outs[i].iter_mut().zip(&positions) {
-                    *r = frame.world_remainder(*p, *r);
-                }
-            }
+        }
+        for (i, positions) in stored {
+            frame.remainders_to_world(outs[i], &positions);
         }
         Ok(())
     }

@@ -185,14 +185,9 @@ pub(crate) fn is_xml(bytes: &[u8]) -> bool {
 ///
 /// Raw appended data is handed over re-encoded as base64 ([`raw_appended_as_base64`]).
 pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
-    let Some(at) = find(bytes, b"<VTKFile") else {
+    let Some((at, _, tag)) = first_tag(bytes, b"<VTKFile") else {
         return Cow::Borrowed(bytes);
     };
-    let end = bytes[at..]
-        .iter()
-        .position(|&b| b == b'>')
-        .map_or(bytes.len(), |e| at + e);
-    let tag = String::from_utf8_lossy(&bytes[at..end]).into_owned();
     let patched: Cow<'_, [u8]> = if attribute(&tag, "header_type").is_some() {
         Cow::Borrowed(bytes)
     } else {
@@ -203,11 +198,7 @@ pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
         out.extend_from_slice(&bytes[insert..]);
         Cow::Owned(out)
     };
-    let word = if attribute(&tag, "header_type") == Some("UInt64") {
-        8
-    } else {
-        4
-    };
+    let word = header_word(bytes);
     let compressed = attribute(&tag, "compressor").is_some_and(|c| !c.is_empty());
     match raw_appended_as_base64(&patched, word, compressed) {
         Some(b) => Cow::Owned(b),
@@ -224,9 +215,7 @@ pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
 /// `None` when the file has no raw appended data or its arrays cannot be delimited (the
 /// reader then gets it as it is).
 fn raw_appended_as_base64(bytes: &[u8], word: usize, compressed: bool) -> Option<Vec<u8>> {
-    let tag_at = find(bytes, b"<AppendedData")?;
-    let tag_end = tag_at + bytes[tag_at..].iter().position(|&b| b == b'>')?;
-    let tag = String::from_utf8_lossy(&bytes[tag_at..tag_end]).into_owned();
+    let (tag_at, tag_end, tag) = first_tag(bytes, b"<AppendedData")?;
     if attribute(&tag, "encoding") != Some("raw") {
         return None;
     }
@@ -304,6 +293,32 @@ fn raw_appended_as_base64(bytes: &[u8], word: usize, compressed: bool) -> Option
     out.extend_from_slice(b"\n");
     out.extend_from_slice(&bytes[data_end..]);
     Some(out)
+}
+
+/// The first tag that `open` starts (`b"<VTKFile"`) in `bytes`: where it starts, where
+/// its `>` is (the file's end without one), and its text. Positions are in the bytes, not
+/// in a lossily decoded text (longer wherever the file is not UTF-8: its offsets indexed
+/// past the end of the bytes).
+fn first_tag(bytes: &[u8], open: &[u8]) -> Option<(usize, usize, String)> {
+    let at = find(bytes, open)?;
+    let end = bytes[at..]
+        .iter()
+        .position(|&b| b == b'>')
+        .map_or(bytes.len(), |e| at + e);
+    Some((
+        at,
+        end,
+        String::from_utf8_lossy(&bytes[at..end]).into_owned(),
+    ))
+}
+
+/// Bytes of a compression header word as vtkio reads the file after [`xml_for_reader`]:
+/// 8 for `header_type="UInt64"`, else 4 (VTK's default).
+fn header_word(bytes: &[u8]) -> usize {
+    match first_tag(bytes, b"<VTKFile") {
+        Some((_, _, tag)) if attribute(&tag, "header_type") == Some("UInt64") => 8,
+        _ => 4,
+    }
 }
 
 /// The first position of `needle` in `haystack`.
@@ -622,16 +637,9 @@ fn check_appended_zlib(
     if !text.contains("vtkZLibDataCompressor") {
         return Ok(());
     }
-    // Positions in the file's bytes (the lossy text is longer wherever the file is not
-    // UTF-8: its offsets indexed past the end of the bytes).
-    let Some(tag_at) = find(bytes, b"<AppendedData") else {
+    let Some((tag_at, tag_end, tag)) = first_tag(bytes, b"<AppendedData") else {
         return Ok(());
     };
-    let tag_end = bytes[tag_at..]
-        .iter()
-        .position(|&b| b == b'>')
-        .map_or(bytes.len(), |e| tag_at + e);
-    let tag = String::from_utf8_lossy(&bytes[tag_at..tag_end]);
     let base64 = match attribute(&tag, "encoding") {
         Some("raw") => false,
         Some("base64") => true,
@@ -647,17 +655,7 @@ fn check_appended_zlib(
         return Err(bad(path, "its appended data has no `_` start mark".into()));
     };
     let data = &bytes[tag_end + underscore + 1..];
-    // The header word as vtkio reads it, given `xml_for_reader`'s default.
-    let word = match find(bytes, b"<VTKFile").map(|at| {
-        let end = bytes[at..]
-            .iter()
-            .position(|&b| b == b'>')
-            .map_or(bytes.len(), |e| at + e);
-        String::from_utf8_lossy(&bytes[at..end]).into_owned()
-    }) {
-        Some(t) if attribute(&t, "header_type") == Some("UInt64") => 8,
-        _ => 4,
-    };
+    let word = header_word(bytes);
     let head = String::from_utf8_lossy(&bytes[..tag_at]);
     let mut rest: &str = &head;
     while let Some(i) = rest.find("<DataArray") {
