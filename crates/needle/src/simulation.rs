@@ -362,11 +362,40 @@ impl Simulation {
         self.state.entry
     }
 
-    /// Depth of the tip past the first contact point along the needle, m (from the start
-    /// tip before any contact).
+    /// Depth of the tip past the first contact point along the needle, m: negative
+    /// before the contact. A run that has not touched (or never touches) measures it from
+    /// where the needle's axis at its first recorded step meets the tissue's rest
+    /// surface, so a sweep's variants agree whether or not they reach the tissue; a needle
+    /// aimed past the tissue measures it from its first recorded tip.
     pub fn depth_of(&self, tip: [f64; 3], direction: [f64; 3]) -> f64 {
-        let origin = self.state.entry.or(self.state.start_tip).unwrap_or(tip);
+        let origin = self.state.entry.or(self.state.depth_origin).unwrap_or(tip);
         (DVec3::from(tip) - DVec3::from(origin)).dot(DVec3::from(direction))
+    }
+
+    /// Where the line from `tip` along `direction` first enters the tissue's rest
+    /// surface (the depth origin before a contact), or `tip` when it misses. Once per run.
+    fn aim_point(&self, tip: [f64; 3], direction: [f64; 3]) -> [f64; 3] {
+        let rest = |v: u32| self.rest_of(v);
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for p in &self.rest {
+            lo = lo.min(DVec3::from(*p));
+            hi = hi.max(DVec3::from(*p));
+        }
+        let p0 = DVec3::from(tip);
+        let reach = p0.distance(0.5 * (lo + hi)) + lo.distance(hi);
+        if !reach.is_finite() {
+            return tip;
+        }
+        let p1 = p0 + DVec3::from(direction) * reach;
+        let triangles = self.state.surface.triangles();
+        crate::surface_query::first_crossing(
+            tip,
+            p1.to_array(),
+            0..triangles.len() as u32,
+            crate::surface_query::Side::Entering,
+            |id| triangles[id as usize].map(rest),
+        )
+        .map_or(tip, |h| h.point)
     }
 
     /// Rest positions of the active nodes (mesh nodes, then needle nodes), m.
@@ -441,7 +470,9 @@ impl Simulation {
         self.apply_friction(&prev, &now)?;
         self.stepper.finish_step(self.backend.as_mut())?;
         if self.state.record {
-            self.state.start_tip.get_or_insert(now.tip());
+            if self.state.depth_origin.is_none() {
+                self.state.depth_origin = Some(self.aim_point(now.tip(), now.direction()));
+            }
             let sample = NeedleSample {
                 step: self.stepper.steps(),
                 time: self.stepper.time(),

@@ -101,8 +101,9 @@ pub(crate) struct NeedleState {
     pub record: bool,
     /// Most history samples kept (the oldest go first); `None` keeps every one.
     pub history_limit: Option<usize>,
-    /// The tip before the first recorded step (the depth origin before any contact).
-    pub start_tip: Option<[f64; 3]>,
+    /// The depth origin before any contact: where the needle's axis at the first
+    /// recorded step meets the tissue's rest surface (that step's tip when it misses).
+    pub depth_origin: Option<[f64; 3]>,
 }
 
 impl NeedleState {
@@ -134,7 +135,7 @@ impl NeedleState {
             history: Vec::new(),
             record: true,
             history_limit: None,
-            start_tip: None,
+            depth_origin: None,
         }
     }
 

@@ -170,9 +170,10 @@ impl PyHapticLoop {
         proxy_damping: Option<f64>,
         lowpass: Option<f64>,
         max_force: f64,
-        max_ticks: Option<u64>,
+        max_ticks: Option<&Bound<'_, PyAny>>,
         device: Option<PyRef<PySineDevice>>,
     ) -> PyResult<Self> {
+        let max_ticks = crate::opt_count_arg(max_ticks, "max_ticks", u64::MAX)?;
         let d = VirtualCoupling::default();
         let k = stiffness.unwrap_or(d.stiffness);
         let m = proxy_mass.unwrap_or(d.proxy_mass);

@@ -11,7 +11,7 @@ use needlesim::core::NodeSelection;
 use needlesim::needle::{Checkpoint, PunctureState, SceneText, Simulation, SimulationError};
 use needlesim::{make_backend, NodeField, RunError, Scene};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyOverflowError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use std::path::PathBuf;
@@ -23,6 +23,52 @@ mod rod;
 
 fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// A count argument (steps, threads, pixels, segments, ticks): a Python integer from 0 to
+/// `max`. pyo3's own conversion raises an OverflowError that names no argument for `-1`;
+/// this one says which argument and why (ValueError), or that it is not an integer
+/// (TypeError).
+pub(crate) fn count_arg(obj: &Bound<'_, PyAny>, name: &str, max: u64) -> PyResult<u64> {
+    let too_large = || {
+        PyValueError::new_err(format!(
+            "`{name}` = {obj} is larger than the largest accepted, {max}"
+        ))
+    };
+    match obj.extract::<u64>() {
+        Ok(v) if v <= max => Ok(v),
+        Ok(_) => Err(too_large()),
+        Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
+            if obj.lt(0)? {
+                Err(PyValueError::new_err(format!(
+                    "`{name}` = {obj} is negative; it counts, so it must be 0 or more"
+                )))
+            } else {
+                Err(too_large())
+            }
+        }
+        Err(_) => Err(PyTypeError::new_err(format!(
+            "`{name}` must be an integer, not {}",
+            obj.get_type().name()?
+        ))),
+    }
+}
+
+/// The `threads` argument of the constructors (None: the scene's or all cores).
+fn threads_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<usize>> {
+    Ok(opt_count_arg(obj, "threads", usize::MAX as u64)?.map(|t| t as usize))
+}
+
+/// An optional count argument (`None` passes through); see [`count_arg`].
+pub(crate) fn opt_count_arg(
+    obj: Option<&Bound<'_, PyAny>>,
+    name: &str,
+    max: u64,
+) -> PyResult<Option<u64>> {
+    match obj {
+        Some(o) if !o.is_none() => count_arg(o, name, max).map(Some),
+        _ => Ok(None),
+    }
 }
 
 fn runtime_error(e: impl std::fmt::Display) -> PyErr {
@@ -331,7 +377,12 @@ impl PySimulation {
     /// (0 = all; implies a CPU backend).
     #[staticmethod]
     #[pyo3(signature = (path, backend=None, threads=None))]
-    fn from_scene(path: PathBuf, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+    fn from_scene(
+        path: PathBuf,
+        backend: Option<&str>,
+        threads: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let threads = threads_arg(threads)?;
         // Read through the checked path (size, regular file) first, for its errors.
         let scene = Scene::from_file(&path).map_err(value_error)?;
         let toml = std::fs::read_to_string(&path).map_err(value_error)?;
@@ -350,9 +401,10 @@ impl PySimulation {
     fn from_dict(
         scene: &Bound<'_, PyDict>,
         backend: Option<&str>,
-        threads: Option<usize>,
+        threads: Option<&Bound<'_, PyAny>>,
         base_dir: Option<PathBuf>,
     ) -> PyResult<Self> {
+        let threads = threads_arg(threads)?;
         let table = to_toml(scene.as_any(), "")?;
         let toml = toml::to_string(&table).map_err(value_error)?;
         let base_dir = base_dir.unwrap_or_else(|| PathBuf::from("."));
@@ -379,7 +431,12 @@ impl PySimulation {
     /// version, a truncated or altered one is a ValueError naming the problem.
     #[staticmethod]
     #[pyo3(signature = (path, backend=None, threads=None))]
-    fn load(path: PathBuf, backend: Option<&str>, threads: Option<usize>) -> PyResult<Self> {
+    fn load(
+        path: PathBuf,
+        backend: Option<&str>,
+        threads: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let threads = threads_arg(threads)?;
         let mut c = Checkpoint::read(&path).map_err(value_error)?;
         let scene = c
             .scene
@@ -397,8 +454,10 @@ impl PySimulation {
     }
 
     #[setter]
-    fn set_history_limit(&self, limit: Option<usize>) {
-        self.lock().set_history_limit(limit);
+    fn set_history_limit(&self, limit: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let limit = opt_count_arg(limit, "history_limit", usize::MAX as u64)?;
+        self.lock().set_history_limit(limit.map(|l| l as usize));
+        Ok(())
     }
 
     /// Runs `n` steps with the interpreter lock released. Every `physics.check_every`
@@ -407,8 +466,9 @@ impl PySimulation {
     /// Steps run in chunks of about 20 ms; between chunks pending signals are handled, so
     /// Ctrl-C raises KeyboardInterrupt with the simulation at a step boundary (the steps
     /// done so far stay done).
-    #[pyo3(signature = (n=1))]
-    fn step(&self, py: Python<'_>, n: u64) -> PyResult<()> {
+    #[pyo3(signature = (n=None), text_signature = "($self, n=1)")]
+    fn step(&self, py: Python<'_>, n: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+        let n = opt_count_arg(n, "n", u64::MAX)?.unwrap_or(1);
         self.idle()?;
         const CHUNK_SECONDS: f64 = 0.02;
         let sim = &self.sim;
@@ -512,8 +572,19 @@ impl PySimulation {
     /// nodes, the force-against-depth inset) to a PNG at `path`, offscreen on a GPU or
     /// Mesa's software Vulkan driver (RuntimeError without one; ValueError for a size
     /// outside 1..8192).
-    #[pyo3(signature = (path, width=800, height=600))]
-    fn screenshot(&self, py: Python<'_>, path: PathBuf, width: u32, height: u32) -> PyResult<()> {
+    #[pyo3(
+        signature = (path, width=None, height=None),
+        text_signature = "($self, path, width=800, height=600)"
+    )]
+    fn screenshot(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        width: Option<&Bound<'_, PyAny>>,
+        height: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let width = opt_count_arg(width, "width", u32::MAX.into())?.unwrap_or(800) as u32;
+        let height = opt_count_arg(height, "height", u32::MAX.into())?.unwrap_or(600) as u32;
         let sim = &self.sim;
         py.detach(|| {
             let mut s = sim.lock().unwrap_or_else(|p| p.into_inner());

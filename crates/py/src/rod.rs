@@ -16,8 +16,10 @@ use pyo3::prelude::*;
 /// shaft, or a load the solve finds no equilibrium for.
 #[pyfunction]
 #[pyo3(signature = (length, outer_diameter, inner_diameter = 0.0, *, young_modulus = 193e9,
-    poisson_ratio = 0.29, segments = 20, forces = Vec::new(), moments = Vec::new(),
-    per_length = (0.0, 0.0, 0.0)))]
+    poisson_ratio = 0.29, segments = None, forces = Vec::new(), moments = Vec::new(),
+    per_length = (0.0, 0.0, 0.0)),
+    text_signature = "(length, outer_diameter, inner_diameter=0.0, *, young_modulus=193e9, \
+        poisson_ratio=0.29, segments=20, forces=..., moments=..., per_length=...)")]
 #[allow(clippy::too_many_arguments)]
 pub fn flexible_needle<'py>(
     py: Python<'py>,
@@ -26,11 +28,13 @@ pub fn flexible_needle<'py>(
     inner_diameter: f64,
     young_modulus: f64,
     poisson_ratio: f64,
-    segments: usize,
+    segments: Option<&Bound<'py, PyAny>>,
     forces: Vec<(f64, f64, f64, f64)>,
     moments: Vec<(f64, f64, f64, f64)>,
     per_length: (f64, f64, f64),
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let segments =
+        crate::opt_count_arg(segments, "segments", usize::MAX as u64)?.unwrap_or(20) as usize;
     let spec = ShaftSpec {
         length,
         outer_diameter,

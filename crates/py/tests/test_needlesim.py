@@ -141,6 +141,31 @@ def test_a_scene_integer_beyond_64_bits_names_its_key():
         needlesim.Simulation.from_dict(scene)
 
 
+def test_count_arguments_name_themselves_when_negative_too_large_or_not_integers():
+    # pyo3's conversion raised an OverflowError naming no argument for step(-1).
+    sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
+    with pytest.raises(ValueError, match="`n` = -1 is negative"):
+        sim.step(-1)
+    with pytest.raises(ValueError, match="`n` = 18446744073709551616 is larger"):
+        sim.step(2**64)
+    with pytest.raises(TypeError, match="`n` must be an integer, not float"):
+        sim.step(1.5)
+    with pytest.raises(ValueError, match="`history_limit` = -3 is negative"):
+        sim.history_limit = -3
+    with pytest.raises(ValueError, match="`width` = -1 is negative"):
+        sim.screenshot("never.png", width=-1)
+    with pytest.raises(ValueError, match="`threads` = -2 is negative"):
+        needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=-2)
+    with pytest.raises(ValueError, match="`segments` = -1 is negative"):
+        needlesim.flexible_needle(0.1, 1e-3, segments=-1)
+    with pytest.raises(ValueError, match="`max_ticks` = -5 is negative"):
+        needlesim.HapticLoop(sim, max_ticks=-5)
+    # The defaults and numpy integers still work.
+    sim.step()
+    sim.step(np.int64(2))
+    assert sim.steps == 3
+
+
 def test_a_needle_base_beyond_f32s_range_is_refused():
     # At 1e300 m the contact's sweep overflowed and its checks let the pose through.
     sim = needlesim.Simulation.from_scene(INSERT_EXTRACT, threads=1)
