@@ -281,6 +281,34 @@ fn fuzzed_vtp_files_are_typed_errors_and_the_vtk_default_header_loads() {
     let scene = Scene::from_toml_str(&surface_scene("vtk", "octa.vtp"), d).unwrap();
     let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
     assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{}", t.volume);
+
+    // Pieces without points: vtkio's reader panicked on any (the message was a caught
+    // `Option::unwrap()`). An empty piece, as VTK writes an empty block, is left out; one
+    // that declares points and has none, or a file with no points at all, is named.
+    let piece_at = valid.find("<Piece").unwrap();
+    let with = |extra: &str| format!("{}{extra}{}", &valid[..piece_at], &valid[piece_at..]);
+    let empty = "<Piece NumberOfPoints=\"0\" NumberOfPolys=\"0\"/>\n";
+    std::fs::write(d.join("empty_first.vtp"), with(&empty.repeat(1000))).unwrap();
+    let scene = Scene::from_toml_str(&surface_scene("vtk", "empty_first.vtp"), d).unwrap();
+    let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{e}"));
+    assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{}", t.volume);
+    let only_empty = |n: usize| {
+        let end = valid.find("</Piece>").unwrap() + "</Piece>".len();
+        format!("{}{}{}", &valid[..piece_at], empty.repeat(n), &valid[end..])
+    };
+    std::fs::write(d.join("all_empty.vtp"), only_empty(3)).unwrap();
+    let e = surface_error(d, "vtk", "all_empty.vtp");
+    assert!(e.contains("none of its 3 pieces has points"), "{e}");
+    std::fs::write(d.join("no_piece.vtp"), only_empty(0)).unwrap();
+    let e = surface_error(d, "vtk", "no_piece.vtp");
+    assert!(e.contains("no <Piece> element"), "{e}");
+    let hollow = "<Piece NumberOfPoints=\"4\" NumberOfPolys=\"0\"></Piece>\n";
+    std::fs::write(d.join("hollow.vtp"), with(hollow)).unwrap();
+    let e = surface_error(d, "vtk", "hollow.vtp");
+    assert!(
+        e.contains("piece 0 declares NumberOfPoints=\"4\" but has no <Points>"),
+        "{e}"
+    );
 }
 
 /// Raw appended data, the default of VTK's and ParaView's writers: vtkio's XML reader

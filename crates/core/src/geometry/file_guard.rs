@@ -188,6 +188,20 @@ pub(crate) fn xml_for_reader(bytes: &[u8]) -> Cow<'_, [u8]> {
     let Some((at, _, tag)) = first_tag(bytes, b"<VTKFile") else {
         return Cow::Borrowed(bytes);
     };
+    // Pieces without points (VTK writes `<Piece NumberOfPoints="0" .../>` for an empty
+    // block) are left out: vtkio's reader panicked on them. [`check_xml_vtk`] has refused
+    // a piece that declares points and has none.
+    let pieces = pieces(bytes);
+    if pieces.iter().any(|p| !p.has_points) {
+        let mut kept = Vec::with_capacity(bytes.len());
+        let mut from = 0;
+        for p in pieces.iter().filter(|p| !p.has_points) {
+            kept.extend_from_slice(&bytes[from..p.range.start]);
+            from = p.range.end;
+        }
+        kept.extend_from_slice(&bytes[from..]);
+        return Cow::Owned(xml_for_reader(&kept).into_owned());
+    }
     let patched: Cow<'_, [u8]> = if attribute(&tag, "header_type").is_some() {
         Cow::Borrowed(bytes)
     } else {
@@ -324,6 +338,53 @@ fn header_word(bytes: &[u8]) -> usize {
 /// The first position of `needle` in `haystack`.
 fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
     haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+/// An XML VTK `<Piece>` element: its byte range in the file, its tag text, and whether it
+/// holds a `<Points>` element.
+struct PieceSpan {
+    range: std::ops::Range<usize>,
+    tag: String,
+    has_points: bool,
+}
+
+/// The `<Piece>` elements before any appended data (raw appended bytes may hold anything).
+fn pieces(bytes: &[u8]) -> Vec<PieceSpan> {
+    let end = find(bytes, b"<AppendedData").unwrap_or(bytes.len());
+    let bytes = &bytes[..end];
+    let is_name_end =
+        |b: Option<&u8>| b.is_none_or(|b| b.is_ascii_whitespace() || b"/>".contains(b));
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(i) = find(&bytes[from..], b"<Piece") {
+        let at = from + i;
+        from = at + b"<Piece".len();
+        if !is_name_end(bytes.get(from)) {
+            continue;
+        }
+        let Some(close) = bytes[from..].iter().position(|&b| b == b'>') else {
+            break;
+        };
+        let tag_end = from + close;
+        let tag = String::from_utf8_lossy(&bytes[at..tag_end]).into_owned();
+        let (body, stop) = if bytes[tag_end - 1] == b'/' {
+            (&bytes[tag_end..tag_end], tag_end + 1)
+        } else {
+            let stop = find(&bytes[tag_end..], b"</Piece>")
+                .map_or(bytes.len(), |e| tag_end + e + b"</Piece>".len());
+            (&bytes[tag_end..stop], stop)
+        };
+        let has_points = body
+            .windows(b"<Points".len() + 1)
+            .any(|w| w.starts_with(b"<Points") && is_name_end(w.last()));
+        out.push(PieceSpan {
+            range: at..stop,
+            tag,
+            has_points,
+        });
+        from = stop;
+    }
+    out
 }
 
 /// Bytes of one binary value of the VTK data type named `t` (4 for a name it does not
@@ -597,7 +658,31 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
         .saturating_mul(24)
         .saturating_add(cells.saturating_mul(128))
         .saturating_add(4096);
-    check_appended_zlib(path, bytes, &text, budget)
+    check_appended_zlib(path, bytes, &text, budget)?;
+    let spans = self::pieces(bytes);
+    for (k, p) in spans.iter().enumerate() {
+        let declared = attribute(&p.tag, "NumberOfPoints").map(str::trim);
+        if !p.has_points && declared.is_some_and(|n| n != "0") {
+            return Err(bad(
+                path,
+                format!(
+                    "piece {k} declares NumberOfPoints=\"{}\" but has no <Points> element",
+                    declared.unwrap_or_default()
+                ),
+            ));
+        }
+    }
+    if spans.iter().all(|p| !p.has_points) {
+        return Err(bad(
+            path,
+            if spans.is_empty() {
+                "it has no <Piece> element: no surface".into()
+            } else {
+                format!("none of its {} pieces has points: no surface", spans.len())
+            },
+        ));
+    }
+    Ok(())
 }
 
 /// The value of attribute `name` in the tag text `tag`, if present: `name="value"` or
