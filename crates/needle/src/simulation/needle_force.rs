@@ -476,7 +476,11 @@ impl Simulation {
                 FrictionState::Slip => pl.coefficient,
             };
             let v = xyz(self.state.velocities[k]).dot(t);
-            let cap = mu * (layer.grip * c.grip[k] * l + normal.length())
+            // The resolved tissue's push counts with the node's share of its length: a
+            // node fading out (pulled back over) or in (the Tip node) stands for less
+            // tissue, so its push leaves the friction with it instead of at once when the
+            // node is removed.
+            let cap = mu * (layer.grip * c.grip[k] * l + node.share * normal.length())
                 + pl.viscous * l * (v - u).abs();
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
