@@ -226,6 +226,15 @@ fn quiet_guarded_panics() {
     }));
 }
 
+/// `eprintln!` that ignores a write error (stderr on a closed pipe, `2>&1 | head`)
+/// instead of panicking: the exit status still says what happened.
+macro_rules! tell {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 fn main() -> std::process::ExitCode {
     quiet_guarded_panics();
     match run(Cli::parse()) {
@@ -233,7 +242,7 @@ fn main() -> std::process::ExitCode {
         // The reader of stdout went away (`needlesim ... | head`): nothing more to say.
         Err(e) if is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", message(&e));
+            tell!("error: {}", message(&e));
             let interrupted = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<RunError>(),
@@ -438,7 +447,7 @@ fn run(cli: Cli) -> Result<()> {
                     (_, Ok(p)) => p,
                     (Ok(_), Err(e)) => return Err(e),
                     (Err(_), Err(e)) => {
-                        eprintln!("warning: {}", message(&e));
+                        tell!("warning: {}", message(&e));
                         Vec::new()
                     }
                 }
@@ -459,7 +468,7 @@ fn run(cli: Cli) -> Result<()> {
                 }
             })?;
             for w in &summary.warnings {
-                eprintln!("warning: {w}");
+                tell!("warning: {w}");
             }
             let last = summary.frames.last().copied();
             say!("scene       {stem} ({})", scene.material.short_name())?;
@@ -546,7 +555,7 @@ fn view(args: ViewArgs) -> Result<()> {
         }
         let (sim, warning) = needlesim::start_simulation(&shared, backend, threads)?;
         if let Some(w) = warning {
-            eprintln!("warning: {w}");
+            tell!("warning: {w}");
         }
         Ok(sim)
     };
@@ -726,7 +735,7 @@ fn sweep(
                             String::new()
                         }
                     }))?;
-                    eprintln!("variant {i} ({}) failed: {msg}", values.join(", "));
+                    tell!("variant {i} ({}) failed: {msg}", values.join(", "));
                 }
             }
             f.flush().map_err(csv::Error::from)

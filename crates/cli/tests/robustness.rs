@@ -149,6 +149,27 @@ fn a_closed_stdout_ends_the_cli_quietly() {
     assert!(o.status.success(), "{:?}: {stderr}", o.status);
 }
 
+/// An error with stderr on a closed pipe (`needlesim ... 2>&1 | head -1` once `head` has
+/// gone) exits 1, not 101: printing the error panicked on the broken pipe.
+#[test]
+fn a_closed_stderr_leaves_the_error_exit_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[tissue]\nnot a scene").unwrap();
+    for args in [vec!["info"], vec!["run", "--steps", "1"]] {
+        let mut child = needlesim()
+            .args(&args)
+            .arg(&bad)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stderr.take());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(1), "{args:?}: {status:?}");
+    }
+}
+
 /// A device or a folder given as the surface file or the scene file is refused before it
 /// is read (`/dev/zero` used to be read until memory ran out).
 #[test]
