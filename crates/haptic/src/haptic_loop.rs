@@ -178,14 +178,25 @@ struct Timing {
     steps: u64,
 }
 
+/// The lowest tick rate the loop accepts, Hz.
+pub const MIN_RATE: f64 = 1.0;
+
+/// The most scene time steps one tick may run: `stop` waits for the tick in progress.
+pub const MAX_TICK_STEPS: u64 = 100_000;
+
 fn check(config: &HapticConfig, dt: f64) -> Result<Timing, HapticError> {
     let setting = |name, value, expected| HapticError::Setting {
         name,
         value,
         expected,
     };
-    if !(config.rate.is_finite() && config.rate > 0.0) {
-        return Err(setting("rate", config.rate, "a positive number of Hz"));
+    if !(config.rate.is_finite() && config.rate >= MIN_RATE) {
+        return Err(setting(
+            "rate",
+            config.rate,
+            "at least 1 Hz (a haptic loop ticks hundreds to thousands of times a second; \
+             a slower one ran a tick of millions of steps that nothing could stop)",
+        ));
     }
     if let Some((name, value)) = config.coupling.invalid() {
         return Err(setting(
@@ -214,6 +225,14 @@ fn check(config: &HapticConfig, dt: f64) -> Result<Timing, HapticError> {
             period,
             dt,
         });
+    }
+    if steps > MAX_TICK_STEPS as f64 {
+        return Err(setting(
+            "rate",
+            config.rate,
+            "a tick of at most 100,000 scene time steps (a lower rate or a smaller dt \
+             makes each tick a run that `stop` cannot interrupt)",
+        ));
     }
     Ok(Timing {
         period,

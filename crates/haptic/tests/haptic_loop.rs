@@ -150,14 +150,17 @@ fn the_loop_names_what_is_wrong() {
         ..HapticConfig::default()
     });
     assert!(matches!(e, Some(HapticError::Rate { .. })), "{e:?}");
-    let e = start(HapticConfig {
-        rate: 0.0,
-        ..HapticConfig::default()
-    });
-    assert!(
-        matches!(e, Some(HapticError::Setting { name: "rate", .. })),
-        "{e:?}"
-    );
+    // 0 Hz, and rates so low that one tick ran millions of steps `stop` waited for.
+    for rate in [0.0, 1e-3, 1e-300, 0.5] {
+        let e = start(HapticConfig {
+            rate,
+            ..HapticConfig::default()
+        });
+        assert!(
+            matches!(e, Some(HapticError::Setting { name: "rate", .. })),
+            "{rate}: {e:?}"
+        );
+    }
     let mut c = HapticConfig::default();
     c.coupling.stiffness = -1.0;
     let e = start(c);
