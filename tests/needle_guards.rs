@@ -95,6 +95,7 @@ fn a_pose_that_jumps_while_touching_is_an_error_but_free_motion_is_not() {
         assert!(sim.steps() < 2_000, "never touched");
     }
     // A glitch: 30 cm sideways in one step.
+    let (steps, tip) = (sim.steps(), sim.needle().unwrap().tip());
     sim.set_pose([x, 0.35, 0.0487], [1.0, 0.0, 0.0]).unwrap();
     match sim.step() {
         Err(e @ SimulationError::TooFast { .. }) => {
@@ -102,6 +103,17 @@ fn a_pose_that_jumps_while_touching_is_an_error_but_free_motion_is_not() {
         }
         other => panic!("expected TooFast, got {other:?}"),
     }
+    // The refused step left no trace: the needle is where it was, a second step does
+    // not make the jump (it did: the refused pose had become the last one), and the
+    // needle goes on from there.
+    assert_eq!(sim.steps(), steps);
+    assert_eq!(sim.needle().unwrap().tip(), tip);
+    sim.step().unwrap();
+    assert_eq!(sim.needle().unwrap().tip(), tip);
+    assert_eq!(sim.state(), PunctureState::Touching);
+    sim.set_pose([x + 2.5e-5, 0.0513, 0.0487], [1.0, 0.0, 0.0])
+        .unwrap();
+    sim.step().unwrap();
 }
 
 /// The paper's friction model with a viscous coefficient of 1000 N s/m drives the Surface

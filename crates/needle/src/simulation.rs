@@ -452,7 +452,9 @@ impl Simulation {
             .check_read(self.backend.steps_taken(), positions, velocities)?)
     }
 
-    /// Runs one step.
+    /// Runs one step. A needle motion the contact cannot follow
+    /// ([`SimulationError::TooFast`]) is refused before anything changes: the needle
+    /// stays at its last pose.
     pub fn step(&mut self) -> Result<(), SimulationError> {
         let (Some(prev), Some(_)) = (self.state.prev, self.state.needle) else {
             return self.step_n(1);
@@ -464,7 +466,17 @@ impl Simulation {
         // caller moved the needle with `set_pose` in between.
         let now = self.state.needle.expect("needle present");
         self.state.prev = Some(now);
-        self.contact(&prev, &now)?;
+        if let Err(e) = self.contact(&prev, &now) {
+            // A motion refused as too fast was refused before the contact changed
+            // anything: the step leaves no trace and the needle stays at its last pose
+            // (a second `step` no longer made the refused jump, and setting the pose
+            // back to where the needle was is no motion).
+            if matches!(e, SimulationError::TooFast { .. }) {
+                self.state.prev = Some(prev);
+                self.state.needle = Some(prev);
+            }
+            return Err(e);
+        }
         self.constrain(&prev, &now)?;
         self.backend.compute_forces();
         self.apply_friction(&prev, &now)?;
