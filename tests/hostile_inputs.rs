@@ -550,15 +550,36 @@ fn conflicting_or_badly_named_held_sets_are_errors() {
          [[prescribed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"x\"]\ndisplacement = [0.001, 0.0, 0.0]\n"
     );
     Tissue::from_scene(&Scene::from_toml_str(&text, Path::new(".")).unwrap()).unwrap();
-    // Names that would corrupt reactions.csv, and duplicates (defaults included).
+    // A component held at rest by a fixed set and moved by a prescribed one (the motion
+    // won, and both sets reported its reaction).
+    let e = held_error(
+        "[[fixed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"y\"]\n\
+         [[prescribed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"y\"]\ndisplacement = [0.0, 0.001, 0.0]\n",
+    );
+    assert!(
+        e.contains("prescribed[0]") && e.contains("in y, which fixed[0] holds"),
+        "{e}"
+    );
+    // Held in x, moved in y: allowed.
+    let text = format!(
+        "{HELD}[[fixed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"x\"]\n\
+         [[prescribed]]\naxis = \"y\"\nabove = 0.099\ncomponents = [\"y\"]\ndisplacement = [0.0, 0.001, 0.0]\n"
+    );
+    Tissue::from_scene(&Scene::from_toml_str(&text, Path::new(".")).unwrap()).unwrap();
+    // Names that would corrupt reactions.csv or act on a terminal, and duplicates
+    // (defaults included).
     for (name, key) in [
         ("a,b", "fixed[0].name"),
         ("line\nbreak", "fixed[0].name"),
         ("quote\"d", "fixed[0].name"),
         ("", "fixed[0].name"),
+        ("nul\0byte", "fixed[0].name"),
+        ("line\u{2028}separator", "fixed[0].name"),
+        ("\u{1b}[2Jclear", "fixed[0].name"),
     ] {
+        let quoted = toml::Value::String(name.to_string()).to_string();
         let e = held_error(&format!(
-            "[[fixed]]\naxis = \"x\"\nbelow = 0.001\nname = {name:?}\n"
+            "[[fixed]]\naxis = \"x\"\nbelow = 0.001\nname = {quoted}\n"
         ));
         assert!(e.contains(key), "{name:?}: {e}");
     }
@@ -575,6 +596,11 @@ fn conflicting_or_badly_named_held_sets_are_errors() {
          [[fixed]]\naxis = \"x\"\nabove = 0.099\nname = \"fixed0\"\n",
     );
     assert!(e.contains("fixed[1].name"), "{e}");
+    // The scene's own name is printed by `info`: an escape sequence in it cleared the
+    // terminal.
+    let text = format!("name = \"\\u001b[2J\"\n{HELD}");
+    let e = Scene::from_toml_str(&text, Path::new(".")).unwrap_err().to_string();
+    assert!(e.contains("name") && e.contains("'\\u{1b}'"), "{e}");
 }
 
 /// A vertex near 1e298 m (a double in a VTK file) is named as a units problem (it was

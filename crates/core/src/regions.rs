@@ -110,11 +110,15 @@ pub fn validate(scene: &Scene) -> Result<(), SceneError> {
     let mut seen = vec![BASE_REGION.to_string()];
     for (i, r) in scene.region.iter().enumerate() {
         // Commas and quotes are fine: the CSV files quote them (RFC 4180).
-        if r.name.trim().is_empty() || r.name.contains(['\n', '\r', '[', ']']) {
+        if r.name.trim().is_empty()
+            || r.name.contains(['[', ']'])
+            || crate::scene::hidden_character(&r.name).is_some()
+        {
             return Err(SceneError::invalid(
                 format!("region[{i}].name"),
                 format!(
-                    "must be a non-empty name without brackets or line breaks, got {:?}",
+                    "must be a non-empty name without brackets, control characters (line \
+                     breaks ...) or invisible Unicode characters, got {:?}",
                     r.name
                 ),
             ));

@@ -308,6 +308,8 @@ fn build_boundary(
             "selects no node (check the coordinates against the geometry's bounds)",
         )
     };
+    // Which fixed set holds each node at rest, per component.
+    let mut held_by: Vec<[Option<usize>; 3]> = vec![[None; 3]; n];
     for (s, f) in scene.fixed.iter().enumerate() {
         let nodes = f.nodes.select(rest);
         if nodes.is_empty() {
@@ -315,6 +317,11 @@ fn build_boundary(
         }
         if f.components.all() {
             nodes.iter().for_each(|&i| fixed[i as usize] = true);
+        }
+        for &i in &nodes {
+            for a in (0..3).filter(|&a| f.components.0[a]) {
+                held_by[i as usize][a].get_or_insert(s);
+            }
         }
         boundary.held.push(HeldSet::new(
             names[s].1.clone(),
@@ -325,7 +332,6 @@ fn build_boundary(
             masses,
         ));
     }
-    let held_by_fixed = fixed.clone();
     // Which prescribed set moves each node, and in which components: a node follows one
     // motion per component (two sets moving it apart were accepted, and the later one
     // silently won).
@@ -352,14 +358,22 @@ fn build_boundary(
                 *by = Some(s);
             }
         }
-        if let Some(&i) = nodes.iter().find(|&&i| held_by_fixed[i as usize]) {
-            return Err(SceneError::invalid(
-                format!("prescribed[{s}]"),
-                format!(
-                    "moves node {i}, which a [[fixed]] set holds in every component: a \
-                     node cannot be both held at rest and moved"
-                ),
-            ));
+        // A component both held at rest and moved: the motion won, and both sets
+        // reported the same reaction.
+        for &i in &nodes {
+            if let Some((a, f)) = (0..3)
+                .filter(|&a| p.components.0[a])
+                .find_map(|a| held_by[i as usize][a].map(|f| (a, f)))
+            {
+                return Err(SceneError::invalid(
+                    format!("prescribed[{s}]"),
+                    format!(
+                        "moves node {i} in {}, which fixed[{f}] holds at rest: a node \
+                         component cannot be both held at rest and moved",
+                        ["x", "y", "z"][a]
+                    ),
+                ));
+            }
         }
         if p.components.all() {
             nodes.iter().for_each(|&i| fixed[i as usize] = true);

@@ -133,6 +133,22 @@ pub enum BackendChoice {
     Auto,
 }
 
+/// The first character of `text` that a name must not hold because it acts on a terminal
+/// or a file instead of being seen: a control character (escape, NUL, carriage return ...),
+/// a Unicode line or paragraph separator, a bidirectional override or isolate, or a
+/// zero-width or byte-order mark. A scene name with `ESC [2J` cleared the terminal of
+/// `needlesim info`; a set name with NUL reached the `reactions.csv` header.
+pub fn hidden_character(text: &str) -> Option<char> {
+    text.chars().find(|&c| {
+        c.is_control()
+            || matches!(
+                c,
+                '\u{2028}' | '\u{2029}' | '\u{200B}'..='\u{200F}' | '\u{202A}'..='\u{202E}'
+                    | '\u{2066}'..='\u{2069}' | '\u{FEFF}'
+            )
+    })
+}
+
 impl Scene {
     /// Parses and validates a scene from TOML text. Relative paths resolve against
     /// `base_dir`.
@@ -185,13 +201,15 @@ impl Scene {
         for (k, (key, name)) in names.iter().enumerate() {
             if name.trim().is_empty()
                 || name.trim() != name
-                || name.contains([',', ';', '"', '\'', '\n', '\r', '\t', '[', ']'])
+                || name.contains([',', ';', '"', '\'', '[', ']'])
+                || hidden_character(name).is_some()
             {
                 return Err(SceneError::invalid(
                     key.clone(),
                     format!(
                         "must be a non-empty name without commas, semicolons, quotes, \
-                         brackets, tabs, line breaks or surrounding spaces, got {name:?}"
+                         brackets, control characters (tabs, line breaks ...), invisible \
+                         Unicode characters or surrounding spaces, got {name:?}"
                     ),
                 ));
             }
@@ -208,6 +226,15 @@ impl Scene {
     /// Checks every value's range, table by table. Called by the parsers; call it again
     /// after editing a scene in code.
     pub fn validate(&self) -> Result<(), SceneError> {
+        if let Some(c) = hidden_character(&self.name) {
+            return Err(SceneError::invalid(
+                "name",
+                format!(
+                    "holds the character {c:?}, which a terminal or a file would act on \
+                     instead of showing: the name is printed and written to outputs"
+                ),
+            ));
+        }
         self.tissue.validate()?;
         self.material.validate("material")?;
         self.physics.validate()?;
