@@ -676,3 +676,24 @@ fn too_fine_a_spacing_is_named_as_the_cause_not_the_placement() {
         "{e}"
     );
 }
+
+/// A 3-vector key with more than three elements is refused, naming the key (serde's
+/// fixed-size arrays read the first three and dropped the rest, so gravity with a string
+/// and a table after its three numbers was accepted).
+#[test]
+fn vectors_with_extra_elements_are_refused() {
+    for (extra, key) in [
+        ("[physics]\ngravity = [0.0, -9.81, 0.0, \"junk\"]\n", "physics.gravity"),
+        ("[initial]\nstretch = [1.0, 1.0, 1.0, 99.0]\n", "initial.stretch"),
+        (
+            "[[prescribed]]\naxis = \"y\"\nabove = 0.099\ndisplacement = [0.0, 0.001, 0.0, 0.0]\n",
+            "displacement",
+        ),
+    ] {
+        let text = format!("{}{extra}", HELD.replace("[physics]\ndt = 1e-3\n", ""));
+        let e = Scene::from_toml_str(&text, Path::new("."))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(key) && e.contains("elements"), "{key}: {e}");
+    }
+}

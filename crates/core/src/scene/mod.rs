@@ -133,6 +133,53 @@ pub enum BackendChoice {
     Auto,
 }
 
+/// Keys whose value is a 3-vector wherever they appear in a scene.
+const VECTOR_KEYS: &[&str] = &[
+    "gravity",
+    "stretch",
+    "min",
+    "max",
+    "translate",
+    "axis",
+    "base",
+    "direction",
+    "point",
+    "centre",
+    "displacement",
+    "velocity",
+];
+
+/// Refuses a 3-vector key given more than three elements: serde's fixed-size arrays read
+/// the first three and drop the rest, so `gravity = [0, -9.81, 0, "junk"]` was accepted
+/// (too few elements are refused by the parser).
+fn check_vector_lengths(table: &toml::Table, path: &str) -> Result<(), SceneError> {
+    for (key, value) in table {
+        let here = if path.is_empty() {
+            key.clone()
+        } else {
+            format!("{path}.{key}")
+        };
+        match value {
+            toml::Value::Array(a) if VECTOR_KEYS.contains(&key.as_str()) && a.len() > 3 => {
+                return Err(SceneError::invalid(
+                    here,
+                    format!("has {} elements: a vector has three, [x, y, z]", a.len()),
+                ));
+            }
+            toml::Value::Array(a) => {
+                for (i, item) in a.iter().enumerate() {
+                    if let toml::Value::Table(t) = item {
+                        check_vector_lengths(t, &format!("{here}[{i}]"))?;
+                    }
+                }
+            }
+            toml::Value::Table(t) => check_vector_lengths(t, &here)?,
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// The first character of `text` that a name must not hold because it acts on a terminal
 /// or a file instead of being seen: a control character (escape, NUL, carriage return ...),
 /// a Unicode line or paragraph separator, a bidirectional override or isolate, or a
@@ -174,6 +221,9 @@ impl Scene {
             message: e.to_string().trim_end().to_string(),
         })?;
         scene.base_dir = base_dir.to_path_buf();
+        if let Ok(doc) = text.parse::<toml::Table>() {
+            check_vector_lengths(&doc, "")?;
+        }
         scene.validate()?;
         Ok(scene)
     }
