@@ -697,3 +697,43 @@ fn vectors_with_extra_elements_are_refused() {
         assert!(e.contains(key) && e.contains("elements"), "{key}: {e}");
     }
 }
+
+/// Needle parameters of absurd size are named (1e308 N of cutting force ran into a
+/// non-finite tissue; a radius of 1e-18 m lost the cutting force), and a region's own
+/// density is named when it gives a mass f32 cannot hold (the message named
+/// `tissue.density`).
+#[test]
+fn needle_parameters_beyond_any_scale_and_region_densities_are_named() {
+    let base = include_str!("../scenes/needle_insert_extract.toml");
+    for (from, to, key) in [
+        ("cutting = 0.05", "cutting = 1e308", "needle.cutting"),
+        ("radius = 0.000635", "radius = 1e-18", "needle.radius"),
+        (
+            "friction = { coefficient = 0.3 }",
+            "friction = { coefficient = 0.3, sheath_viscosity = 1e300 }",
+            "needle.friction.sheath_viscosity",
+        ),
+        (
+            "cutting = 0.05",
+            "cutting = 0.05\ncontact_radius = 1e40",
+            "needle.contact_radius",
+        ),
+    ] {
+        let text = base.replacen(from, to, 1);
+        assert_ne!(text, base, "{from}");
+        let e = match Scene::from_toml_str(&text, Path::new("scenes")) {
+            Err(e) => e.to_string(),
+            Ok(s) => match needlesim::needle::Simulation::prepare(&s) {
+                Err(e) => e.to_string(),
+                Ok(_) => panic!("{to}: accepted"),
+            },
+        };
+        assert!(e.contains(key), "{to}: {e}");
+    }
+    let text = format!(
+        "{HELD}[[region]]\nname = \"heavy\"\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], \
+         max = [0.1, 0.1, 0.05] }}\ndensity = 1e308\nmaterial = {{ stiffness = 100.0 }}\n"
+    );
+    let e = held_error(&text[HELD.len()..]);
+    assert!(e.contains("region[heavy].density"), "{e}");
+}

@@ -127,8 +127,15 @@ impl Tissue {
             m.is_finite() && m > 0.0 && (m as f32).is_normal() && ((1.0 / m) as f32).is_normal()
         };
         if let Some(i) = masses.iter().position(|&m| !representable(m)) {
+            // The density that gave it: the node's region's when it sets its own.
+            let r = regions.of_node.get(i).copied().unwrap_or(0) as usize;
+            let key = match r {
+                0 => "tissue.density".to_string(),
+                _ if regions.densities[r] == rho => "tissue.density".to_string(),
+                _ => format!("region[{}].density", regions.names[r]),
+            };
             return Err(SceneError::invalid(
-                "tissue.density",
+                key,
                 format!(
                     "node {i} gets mass {:e} kg: density times its cell volume must be a positive \
                      number whose value and inverse fit in f32 (1.2e-38 to 3.4e38)",

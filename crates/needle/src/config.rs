@@ -214,11 +214,29 @@ impl NeedleConfig {
                 format!("must be in (0, 1], got {}", self.tip_refresh),
             ));
         }
-        if !(self.radius.is_finite() && self.radius > 0.0) {
+        if !(self.radius.is_finite() && self.radius >= MIN_RADIUS) {
             return Err(SceneError::invalid(
                 "needle.radius",
-                format!("must be a finite number > 0 (m), got {}", self.radius),
+                format!(
+                    "must be a finite number of at least 1e-6 m (1 um), got {:e}",
+                    self.radius
+                ),
             ));
+        }
+        for (key, v) in [
+            ("needle.radius", Some(self.radius)),
+            ("needle.length", Some(self.length)),
+            ("needle.cutting", Some(self.cutting)),
+            ("needle.spacing", self.spacing),
+            ("needle.puncture_force", self.puncture_force),
+            ("needle.contact_radius", self.contact_radius),
+            ("needle.point_length", self.point_length),
+            ("needle.tear_time", self.tear_time),
+            ("needle.speed_ramp", self.speed_ramp),
+        ] {
+            if let Some(v) = v {
+                check_magnitude(key, v).map_err(|(k, why)| SceneError::invalid(k, why))?;
+            }
         }
         if !(self.cutting.is_finite() && self.cutting >= 0.0) {
             return Err(SceneError::invalid(
@@ -335,6 +353,16 @@ impl NeedleConfig {
                 ));
             }
         }
+        for (name, v) in [
+            ("contact_radius", k.contact_radius),
+            ("cutting", k.cutting),
+            ("puncture_force", k.puncture_force),
+        ] {
+            if let Some(v) = v {
+                check_magnitude(&format!("{key}.{name}"), v)
+                    .map_err(|(k, why)| SceneError::invalid(k, why))?;
+            }
+        }
         if let Some(r) = k.contact_radius {
             if !(r.is_finite() && r > 0.0) {
                 return Err(SceneError::invalid(
@@ -424,4 +452,26 @@ impl NeedleConfig {
         }
         Ok(())
     }
+}
+
+/// The largest magnitude a needle parameter may have (a force in N, a length in m, a time
+/// in s, a coefficient): beyond it a value is a units mistake, and the needle's forces go
+/// into f32 arrays (1e308 N of cutting force ran into a non-finite tissue). The same bound
+/// as the needle's base ([`crate::NeedleError::FarBase`]).
+pub const MAX_MAGNITUDE: f64 = 1e30;
+
+/// The thinnest needle, m: 1 um (microneedles are tens of micrometres across). Below it the
+/// cutting element's stiffness `F_c / a` and the sheath's logarithm lose the cutting force
+/// (a radius of 1e-18 m inserted with no cutting force at all).
+pub const MIN_RADIUS: f64 = 1e-6;
+
+/// Refuses a parameter whose magnitude exceeds [`MAX_MAGNITUDE`] (0 passes).
+pub(crate) fn check_magnitude(key: &str, v: f64) -> Result<(), (String, String)> {
+    if v.abs() > MAX_MAGNITUDE {
+        return Err((
+            key.to_string(),
+            format!("{v:e} is beyond the 1e30 a needle parameter may reach (a units mistake?)"),
+        ));
+    }
+    Ok(())
 }

@@ -62,7 +62,9 @@ impl PaperFriction {
                     format!("must be a finite number >= 0, got {v}"),
                 ));
             }
+            crate::config::check_magnitude(&format!("needle.friction.{name}"), v)?;
         }
+        crate::config::check_magnitude("needle.friction.stick_speed", self.stick_speed)?;
         if !(self.stick_speed.is_finite() && self.stick_speed > 0.0) {
             return Err((
                 "needle.friction.stick_speed".into(),

@@ -120,6 +120,10 @@ impl PerLengthFriction {
                     format!("must be a finite number >= 0, got {v}"),
                 ));
             }
+            crate::config::check_magnitude(&format!("needle.friction.{name}"), v)?;
+        }
+        if let Some(k) = self.shear_stiffness {
+            crate::config::check_magnitude("needle.friction.shear_stiffness", k)?;
         }
         if self.static_coefficient() < self.coefficient {
             return Err((
