@@ -363,6 +363,13 @@ pub fn solve(
             // The spring's moment in the frame of the link before the hinge.
             next.push(compliance * (frames[k].inverse() * m));
         }
+        // Rotations beyond f64 (a load of 1e300 N, a tube of 1e-300 m): no equilibrium
+        // (the NaN they gave passed the size test below as 0 and came back as a shape).
+        if !next.iter().all(|t| t.is_finite()) {
+            return Err(RodError::NoEquilibrium {
+                change: f64::INFINITY,
+            });
+        }
         let size = next.iter().map(|t| t.length()).fold(0.0f64, f64::max);
         let change = theta
             .iter()
@@ -371,6 +378,11 @@ pub fn solve(
             .fold(0.0f64, f64::max);
         if change <= TOLERANCE * size.max(1e-300) || size == 0.0 {
             let (points, frames) = shape(spec, base, q0, &next);
+            if !points.iter().all(|p| p.is_finite()) {
+                return Err(RodError::NoEquilibrium {
+                    change: f64::INFINITY,
+                });
+            }
             return Ok(ShaftShape {
                 rotations: next,
                 points,
@@ -577,6 +589,14 @@ mod tests {
             DVec3::ZERO,
             DQuat::IDENTITY,
             &tip_load(DVec3::X * 1e3),
+        );
+        assert!(matches!(e, Err(RodError::NoEquilibrium { .. })), "{e:?}");
+        // Beyond f64: the rotations were NaN and came back as a shape.
+        let e = solve(
+            &needle(20),
+            DVec3::ZERO,
+            DQuat::IDENTITY,
+            &tip_load(DVec3::X * 1e300),
         );
         assert!(matches!(e, Err(RodError::NoEquilibrium { .. })), "{e:?}");
     }
