@@ -240,6 +240,17 @@ fn a_checkpoint_round_trips_through_a_file_and_damage_is_a_typed_error() {
         Checkpoint::read(dir.path()).unwrap_err(),
         CheckpointError::Io { .. }
     ));
+    // A scene stored in it that does not parse names the checkpoint (it said
+    // `scene <string>`).
+    let mut c = sim.checkpoint().unwrap();
+    c.scene = Some(needlesim::needle::SceneText {
+        toml: "[ame = 1".into(),
+        base_dir: ".".into(),
+    });
+    c.write(&path).unwrap();
+    let text = Checkpoint::read(&path).unwrap().scene.unwrap();
+    let e = text.scene_stored_in(&path).unwrap_err().to_string();
+    assert!(e.contains(&format!("stored in {}", path.display())), "{e}");
 }
 
 #[test]

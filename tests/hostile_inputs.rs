@@ -599,7 +599,9 @@ fn conflicting_or_badly_named_held_sets_are_errors() {
     // The scene's own name is printed by `info`: an escape sequence in it cleared the
     // terminal.
     let text = format!("name = \"\\u001b[2J\"\n{HELD}");
-    let e = Scene::from_toml_str(&text, Path::new(".")).unwrap_err().to_string();
+    let e = Scene::from_toml_str(&text, Path::new("."))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("name") && e.contains("'\\u{1b}'"), "{e}");
 }
 
@@ -683,8 +685,14 @@ fn too_fine_a_spacing_is_named_as_the_cause_not_the_placement() {
 #[test]
 fn vectors_with_extra_elements_are_refused() {
     for (extra, key) in [
-        ("[physics]\ngravity = [0.0, -9.81, 0.0, \"junk\"]\n", "physics.gravity"),
-        ("[initial]\nstretch = [1.0, 1.0, 1.0, 99.0]\n", "initial.stretch"),
+        (
+            "[physics]\ngravity = [0.0, -9.81, 0.0, \"junk\"]\n",
+            "physics.gravity",
+        ),
+        (
+            "[initial]\nstretch = [1.0, 1.0, 1.0, 99.0]\n",
+            "initial.stretch",
+        ),
         (
             "[[prescribed]]\naxis = \"y\"\nabove = 0.099\ndisplacement = [0.0, 0.001, 0.0, 0.0]\n",
             "displacement",

@@ -403,7 +403,11 @@ fn run(cli: Cli) -> Result<()> {
                         .file_name()
                         .map(|s| s.to_string_lossy().into_owned())
                         .unwrap_or_else(|| "scene".into());
-                    (text.scene()?, stem, text)
+                    (
+                        text.scene_stored_in(&dir.join("checkpoint.bin"))?,
+                        stem,
+                        text,
+                    )
                 }
                 _ => load_with_text(&scene)?,
             };

@@ -77,7 +77,7 @@ pub enum CheckpointError {
         expected: u64,
     },
     /// The payload does not match its hash or does not decode.
-    #[error("checkpoint {path} is corrupt: {reason}")]
+    #[error("checkpoint {} is corrupt: {reason}", shown(path))]
     Corrupt {
         /// The file (empty when restored from memory).
         path: PathBuf,
@@ -114,6 +114,14 @@ pub enum CheckpointError {
     },
 }
 
+/// A checkpoint's path for a message: "(taken in memory)" when it has none.
+fn shown(path: &Path) -> String {
+    match path.as_os_str().is_empty() {
+        true => "(taken in memory)".into(),
+        false => path.display().to_string(),
+    }
+}
+
 /// The scene a checkpoint can carry: its TOML text and the folder relative paths resolve
 /// against.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -128,6 +136,15 @@ impl SceneText {
     /// Parses and validates the scene.
     pub fn scene(&self) -> Result<Scene, needlesim_core::SceneError> {
         Scene::from_toml_str(&self.toml, &self.base_dir)
+    }
+
+    /// [`SceneText::scene`], its errors naming the checkpoint file it came from.
+    pub fn scene_stored_in(&self, checkpoint: &Path) -> Result<Scene, needlesim_core::SceneError> {
+        Scene::from_toml_str_named(
+            &self.toml,
+            &format!("stored in {}", checkpoint.display()),
+            &self.base_dir,
+        )
     }
 }
 
@@ -170,6 +187,10 @@ pub struct Checkpoint {
     pub(crate) backend: BackendSnapshot,
     pub(crate) editor: EditorSnapshot,
     pub(crate) sim: SimSnapshot,
+    /// The file it was read from (empty when taken in memory), for errors found while
+    /// restoring it.
+    #[serde(skip)]
+    pub(crate) source: PathBuf,
 }
 
 impl Checkpoint {
@@ -271,12 +292,13 @@ impl Checkpoint {
                 reason: "the payload does not match its CRC-32".into(),
             });
         }
-        let c: Checkpoint =
+        let mut c: Checkpoint =
             postcard::from_bytes(payload).map_err(|e| CheckpointError::Corrupt {
                 path: path.clone(),
                 reason: e.to_string(),
             })?;
         c.check_finite(&path)?;
+        c.source = path;
         Ok(c)
     }
 

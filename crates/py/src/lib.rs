@@ -442,6 +442,8 @@ impl PySimulation {
             .scene
             .take()
             .ok_or_else(|| value_error(needlesim::needle::CheckpointError::NoScene))?;
+        // Its errors name the file the scene is stored in.
+        scene.scene_stored_in(&path).map_err(value_error)?;
         Self::build(scene, backend, threads, Some(c))
     }
 

@@ -203,6 +203,16 @@ impl Scene {
         Self::parse(text, "<string>", base_dir)
     }
 
+    /// [`Scene::from_toml_str`], its parse errors naming `origin` (where the text came
+    /// from) instead of `<string>`.
+    pub fn from_toml_str_named(
+        text: &str,
+        origin: &str,
+        base_dir: &Path,
+    ) -> Result<Scene, SceneError> {
+        Self::parse(text, origin, base_dir)
+    }
+
     /// Reads, parses and validates a scene file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
         let path = path.as_ref();

@@ -52,13 +52,14 @@ impl Simulation {
                 time: self.stepper.time(),
                 steps: self.stepper.steps(),
             },
+            source: PathBuf::new(),
         })
     }
 
     /// Puts a checkpoint's state into this freshly started simulation.
     pub(super) fn restore(&mut self, c: Checkpoint) -> Result<(), SimulationError> {
         let corrupt = |reason: String| CheckpointError::Corrupt {
-            path: PathBuf::new(),
+            path: c.source.clone(),
             reason,
         };
         for (part, hash) in &c.fingerprint {
