@@ -726,6 +726,12 @@ fn needle_parameters_beyond_any_scale_and_region_densities_are_named() {
             "cutting = 0.05\ncontact_radius = 1e40",
             "needle.contact_radius",
         ),
+        // A wrong type in a keyframe names its index (it said "in `keyframe`").
+        (
+            "action = \"pause\"\nduration = 0.5",
+            "action = \"pause\"\nduration = \"long\"",
+            "needle.keyframe[1]",
+        ),
     ] {
         let text = base.replacen(from, to, 1);
         assert_ne!(text, base, "{from}");

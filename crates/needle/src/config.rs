@@ -177,6 +177,32 @@ impl NeedleConfig {
     pub fn from_table(table: &toml::Table) -> Result<NeedleConfig, SceneError> {
         let mut table = table.clone();
         let friction = table.remove("friction");
+        // Each keyframe on its own, so that an error names its index (serde's said "in
+        // `keyframe`" for a wrong type in any of them).
+        let keyframes = match table.remove("keyframe") {
+            None => Vec::new(),
+            Some(toml::Value::Array(items)) => items
+                .into_iter()
+                .enumerate()
+                .map(|(i, item)| {
+                    item.try_into().map_err(|e: toml::de::Error| {
+                        SceneError::invalid(
+                            format!("needle.keyframe[{i}]"),
+                            e.to_string().trim_end().replace('\n', " "),
+                        )
+                    })
+                })
+                .collect::<Result<Vec<Keyframe>, SceneError>>()?,
+            Some(other) => {
+                return Err(SceneError::invalid(
+                    "needle.keyframe",
+                    format!(
+                        "must be an array of tables ([[needle.keyframe]]), got a {}",
+                        other.type_str()
+                    ),
+                ))
+            }
+        };
         let mut c: NeedleConfig =
             toml::Value::Table(table)
                 .try_into()
@@ -184,6 +210,7 @@ impl NeedleConfig {
                     origin: "[needle]".into(),
                     message: e.to_string().trim_end().replace('\n', " "),
                 })?;
+        c.keyframe = keyframes;
         if let Some(f) = friction {
             c.friction = FrictionModel::from_value(&f)
                 .map_err(|(key, why)| SceneError::invalid(key, why))?;
