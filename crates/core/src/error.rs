@@ -139,7 +139,11 @@ pub enum GeometryError {
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum SimError {
     /// A position or velocity became NaN or infinite: the simulation diverged.
-    #[error("simulation diverged at step {step}: node {node} has a non-finite {field}")]
+    #[error(
+        "simulation diverged at step {step}: node {node} has a non-finite {field} (a time \
+         step above the stable one is the usual cause: reduce physics.dt, or use dt = \"auto\"; \
+         `needlesim info` prints the critical time step)"
+    )]
     Diverged {
         /// Step counter when it was detected.
         step: u64,

@@ -726,8 +726,20 @@ impl PySimulation {
         &self,
         py: Python<'py>,
         fields: Vec<String>,
-        nodes: Option<Vec<i64>>,
+        nodes: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
+        // An index beyond 64 bits is out of range like any other (pyo3's OverflowError
+        // named no argument).
+        let nodes: Option<Vec<i64>> = match nodes.filter(|n| !n.is_none()) {
+            None => None,
+            Some(n) => Some(n.extract().map_err(|e: PyErr| {
+                if e.is_instance_of::<PyOverflowError>(py) {
+                    value_error("nodes: an index beyond 64 bits, outside the active nodes")
+                } else {
+                    PyTypeError::new_err(format!("nodes: a sequence of integers: {e}"))
+                }
+            })?),
+        };
         let kinds = fields
             .iter()
             .map(|f| field_named(f))

@@ -160,6 +160,8 @@ def test_count_arguments_name_themselves_when_negative_too_large_or_not_integers
         needlesim.flexible_needle(0.1, 1e-3, segments=-1)
     with pytest.raises(ValueError, match="`max_ticks` = -5 is negative"):
         needlesim.HapticLoop(sim, max_ticks=-5)
+    with pytest.raises(ValueError, match="nodes: an index beyond 64 bits"):
+        sim.read(nodes=[2**70])
     # The defaults and numpy integers still work.
     sim.step()
     sim.step(np.int64(2))
@@ -452,3 +454,15 @@ def test_fit_prony_recovers_the_series_of_a_simulated_relaxation():
         needlesim.fit_prony(t[::-1], noisy)
     with pytest.raises(ValueError, match="ramp"):
         needlesim.fit_prony(t, noisy, ramp=float("nan"))
+
+
+def test_fit_prony_fits_a_record_in_any_units():
+    # Forces of 1e300 overflowed inside scipy; a record lasting 1e-299 s met a fixed
+    # 1e-6 s bound on tau. The fit now runs on the record scaled to unit time and force.
+    for time_unit, force_unit in [(1.0, 1.0), (1e-300, 1e300), (1e6, 1e-6)]:
+        t = np.linspace(0.0, 10.0, 200) * time_unit
+        f = 2.0 * force_unit * (0.4 + 0.6 * np.exp(-t / (2.0 * time_unit)))
+        fit = needlesim.fit_prony(t, f, terms=1)
+        (g, tau), = fit.terms
+        assert abs(g - 0.6) < 1e-6 and abs(tau / time_unit - 2.0) < 1e-5, fit
+        assert abs(fit.instantaneous / force_unit - 2.0) < 1e-6, fit

@@ -120,9 +120,16 @@ def fit_prony(
         )
     sign = 1.0 if np.mean(f) >= 0 else -1.0
     f = sign * f
-    span = (max(t.min(), 1e-6), t.max())
     if not f[0] > f[-1] > 0:
         raise ValueError("the force must relax: larger at the start than at the end, same sign")
+    if not t.max() > 0:
+        raise ValueError("time must reach past 0 (s from the start of the ramp)")
+    # The fit runs on a record scaled to unit time and force, so that any units fit (forces
+    # of 1e300 N overflowed inside scipy, a record lasting 1e-300 s met the fixed bound of
+    # 1e-6 s); the result is scaled back.
+    time_unit, force_unit = float(t.max()), float(f.max())
+    t, f, ramp = t / time_unit, f / force_unit, ramp / time_unit
+    span = (max(t.min(), 1e-6), 1.0)
 
     def unpack(x: np.ndarray) -> Tuple[float, List[Tuple[float, float]]]:
         return x[0], [(x[1 + 2 * i], float(np.exp(x[2 + 2 * i]))) for i in range(terms)]
@@ -148,5 +155,9 @@ def fit_prony(
     assert best is not None, "at least one start was fitted"
     f0, series = unpack(best.x)
     series.sort(key=lambda gt: gt[1])
-    rms = float(np.sqrt(np.mean((f0 * _response(t, series, ramp) - f) ** 2)))
-    return PronyFit(terms=[(float(g), float(tau)) for g, tau in series], instantaneous=float(sign * f0), rms=rms)
+    rms = float(np.sqrt(np.mean((f0 * _response(t, series, ramp) - f) ** 2))) * force_unit
+    return PronyFit(
+        terms=[(float(g), float(tau) * time_unit) for g, tau in series],
+        instantaneous=float(sign * f0) * force_unit,
+        rms=rms,
+    )
