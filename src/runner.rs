@@ -333,7 +333,7 @@ impl Outputs {
     ) -> Result<(), RunError> {
         let dir = self.dir.clone();
         if let Some(w) = self.frames.as_mut() {
-            w.row(m).map_err(io_error(&dir))?;
+            w.row(m).map_err(io_error(&dir.join("frames.csv")))?;
         }
         if let Some(w) = self.surface.as_mut() {
             w.frame(
@@ -343,7 +343,7 @@ impl Outputs {
                 sim.triangles(),
                 &sim.needle_node_indices(),
             )
-            .map_err(io_error(&dir))?;
+            .map_err(io_error(&dir.join("surface")))?;
         }
         if let Some((path, w)) = self.reactions.as_mut() {
             let r = sim.reactions()?;
@@ -355,7 +355,8 @@ impl Outputs {
             w.flush().map_err(io_error(path))?;
         }
         if let Some(w) = self.needle.as_mut() {
-            w.append(sim, false).map_err(io_error(&dir))?;
+            let path = w.path().to_path_buf();
+            w.append(sim, false).map_err(io_error(&path))?;
         }
         Ok(())
     }
@@ -366,18 +367,19 @@ impl Outputs {
         let dir = self.dir;
         let mut files = Vec::new();
         if let Some(w) = self.frames {
-            files.push(w.finish().map_err(io_error(&dir))?);
+            files.push(w.finish().map_err(io_error(&dir.join("frames.csv")))?);
         }
         if let Some(w) = self.surface {
-            files.extend(w.finish().map_err(io_error(&dir))?);
+            files.extend(w.finish().map_err(io_error(&dir.join("surface.pvd")))?);
         }
         if let Some((path, mut w)) = self.reactions {
             w.flush().map_err(io_error(&path))?;
             files.push(path);
         }
         if let Some(mut w) = self.needle {
-            w.append(sim, true).map_err(io_error(&dir))?;
-            files.push(w.path().to_path_buf());
+            let path = w.path().to_path_buf();
+            w.append(sim, true).map_err(io_error(&path))?;
+            files.push(path);
         }
         Ok(files)
     }

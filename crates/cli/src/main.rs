@@ -458,10 +458,17 @@ fn run(cli: Cli) -> Result<()> {
             } else {
                 Vec::new()
             };
+            let failed_write = matches!(&summary, Err(RunError::Io { .. }));
             let summary = summary.with_context(|| {
                 // Only a run that wrote frames left output to point at (a configuration
                 // error, a held or unusable folder, wrote none).
-                if out.join("frames.csv").is_file() {
+                if failed_write {
+                    format!(
+                        "running scene `{stem}` (a write failed: the output so far in {} \
+                         may end with a partial row or frame)",
+                        out.display()
+                    )
+                } else if out.join("frames.csv").is_file() {
                     format!(
                         "running scene `{stem}` (output so far, complete up to its last \
                          frame: {})",
