@@ -67,7 +67,13 @@
 //!   and mass-spring. It is not the default yet: with `4 h` the wider release after the
 //!   puncture rings the undamped tissue (the friction-free liver's cutting force dips
 //!   6.7% 60 ms later), the first layer of `tests/layers.rs` needs 2 mm more to relax,
-//!   and a GPU run's node events drift up to 15 steps from the CPU's. Only the triangles
+//!   and a GPU run's node events drift up to 15 steps from the CPU's. With `3 h`
+//!   (2026-11-26, `needlesim report --realism --full`): 7.75 / 7.93 / 7.65 / 9.19 /
+//!   14.98 mm for co-rotated Debunne, point based, neo-Hookean, shape matching and
+//!   mass-spring, the friction-free force flat (0.00%), the layered scene's largest buzz
+//!   11.4% instead of 16.8%; but the layered test's first layer reads a 19% steeper
+//!   friction slope (the entry dent still relaxing), and on lavapipe 5 of its 24 node and
+//!   region events come 1 to 6 steps from the CPU's (none with `2 h`). Only the triangles
 //!   facing the needle count (outward normal within 60 degrees of against it): a patch
 //!   that reaches round the edge of a small body must not take its sides in.
 //! - **Tear** ([`Tear`]): when a membrane gives, its stored load is not dropped in one
