@@ -385,6 +385,10 @@ impl Outputs {
     }
 }
 
+/// The most nodes a run probes for its stable time step when `physics.dt` is given in
+/// seconds ([`run_scene`]'s warning).
+const MAX_PROBED_NODES: usize = 100_000;
+
 /// Builds and runs a scene. `progress(steps_done, steps_total)` is called after every
 /// frame. A scene with a `[needle]` table also writes the needle force of every step
 /// (`needle_force.csv`; the `needlesim` command line tool draws its plots from it).
@@ -405,8 +409,28 @@ pub fn run_scene(
     }
     let prep = Simulation::prepare(scene)?;
     let dt = prep.tissue.step.dt as f64;
+    // A time step given in seconds above the stable one: said, since a run that does
+    // not diverge (nothing loads the tissue) gives no other sign (a scene with dt = 1 s
+    // ran its whole needle script between two steps without a word). The probe costs
+    // about a hundred force evaluations, so only up to MAX_PROBED_NODES nodes.
+    let mut warnings = Vec::new();
+    if scene.physics.dt != needlesim_core::scene::TimeStep::Auto
+        && options.resume.is_none()
+        && prep.tissue.n_mesh <= MAX_PROBED_NODES
+    {
+        let critical = prep.tissue.critical_dt()?;
+        if dt > critical {
+            warnings.push(format!(
+                "physics.dt = {dt:e} s is {:.1} times the largest stable step estimated at \
+                 the initial state ({critical:.3e} s, as `needlesim info` prints): the run \
+                 may diverge, or step past the needle's script; use dt = \"auto\"",
+                dt / critical
+            ));
+        }
+    }
     let (backend, warning) =
         make_backend(scene, prep.tissue.clone(), options.backend, options.threads)?;
+    warnings.extend(warning);
     let mut sim = match &options.resume {
         Some(c) => prep.resume(backend, c.clone())?,
         None => prep.start(backend)?,
@@ -544,7 +568,7 @@ pub fn run_scene(
         total_time: start.elapsed(),
         frames,
         files,
-        warnings: warning.into_iter().collect(),
+        warnings,
         needle: has_needle.then(|| sim.history().to_vec()),
     })
 }

@@ -610,3 +610,38 @@ fn sweep_refuses_zero_jobs_and_names_an_unwritable_csv() {
         assert!(stderr.contains("/dev/full"), "{stderr}");
     }
 }
+
+/// A time step in seconds far above the stable one is warned of (a scene with dt = 1 s ran
+/// its needle script between two steps without a word); the shipped scene is not.
+#[test]
+fn a_time_step_above_the_stable_one_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    // The sagging cube without gravity: nothing loads it, so even a step far too large
+    // does not diverge.
+    let text = std::fs::read_to_string(scenes.join("cube_sag_msm.toml"))
+        .unwrap()
+        .replace("gravity = [0.0, -9.81, 0.0]", "gravity = [0.0, 0.0, 0.0]");
+    assert!(text.contains("dt = 1e-3"), "the scene's time step moved");
+    assert!(
+        text.contains("gravity = [0.0, 0.0, 0.0]"),
+        "the scene's gravity moved"
+    );
+    for (dt, warned) in [("1e-3", false), ("1.0", true)] {
+        let path = dir.path().join(format!("dt_{dt}.toml"));
+        std::fs::write(&path, text.replace("dt = 1e-3", &format!("dt = {dt}"))).unwrap();
+        let o = needlesim()
+            .args(["run", "--steps", "3", "--threads", "1", "--out"])
+            .arg(dir.path().join(format!("out_{dt}")))
+            .arg(&path)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{dt}: {stderr}");
+        assert_eq!(
+            stderr.contains("warning: physics.dt"),
+            warned,
+            "{dt}: {stderr}"
+        );
+    }
+}

@@ -35,18 +35,28 @@ impl Tissue {
     }
 }
 
+impl Tissue {
+    /// The largest stable undamped time step of this tissue at its initial state, s
+    /// ([`crate::stability::max_eigenvalue`] on a CPU copy, 40 power iterations: the
+    /// probe of `dt = "auto"`); infinite when no free node feels an elastic force.
+    pub fn critical_dt(&self) -> Result<f64, SceneError> {
+        let mut probe = CpuBackend::new(self.clone(), Threading::Parallel)
+            .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
+        let est = crate::stability::max_eigenvalue(&mut probe, 40)
+            .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
+        Ok(est.critical_dt)
+    }
+}
+
 /// [`AUTO_DT_SAFETY`] times the critical time step of `tissue` at its initial state.
 fn auto_dt(tissue: &Tissue) -> Result<f64, SceneError> {
-    let mut probe = CpuBackend::new(tissue.clone(), Threading::Parallel)
-        .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
-    let est = crate::stability::max_eigenvalue(&mut probe, 40)
-        .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
-    if !est.critical_dt.is_finite() {
+    let critical_dt = tissue.critical_dt()?;
+    if !critical_dt.is_finite() {
         return Err(SceneError::invalid(
             "physics.dt",
             "\"auto\" needs a stiffness to size the step from (no free node feels an elastic \
              force); give the step in seconds",
         ));
     }
-    Ok(AUTO_DT_SAFETY * est.critical_dt)
+    Ok(AUTO_DT_SAFETY * critical_dt)
 }
