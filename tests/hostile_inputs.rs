@@ -302,6 +302,24 @@ fn fuzzed_vtp_files_are_typed_errors_and_the_vtk_default_header_loads() {
     std::fs::write(d.join("no_piece.vtp"), only_empty(0)).unwrap();
     let e = surface_error(d, "vtk", "no_piece.vtp");
     assert!(e.contains("no <Piece> element"), "{e}");
+    // Empty pieces as other writers put them, and tags in comments, load (the fourth
+    // fuzzing pass: a close tag with a blank ran the cut to the end of the file, a piece
+    // with an empty `<Points>` and `NumberOfPoints="0"` reached vtkio, a comment's
+    // `<Piece>` was taken for one).
+    for (name, extra) in [
+        ("spaced_close.vtp", "<Piece NumberOfPoints=\"0\"></Piece >\n"),
+        (
+            "empty_points.vtp",
+            "<Piece NumberOfPoints=\"0\" NumberOfPolys=\"0\"><Points></Points><Polys></Polys></Piece>\n",
+        ),
+        ("zeros.vtp", "<Piece NumberOfPoints=\"00\"/>\n"),
+        ("comment.vtp", "<!-- <Piece NumberOfPoints=\"8\"/> <Piece> -->\n"),
+    ] {
+        std::fs::write(d.join(name), with(extra)).unwrap();
+        let scene = Scene::from_toml_str(&surface_scene("vtk", name), d).unwrap();
+        let t = Tissue::from_scene(&scene).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!((t.volume - 4.0 / 3.0).abs() < 1e-6, "{name}: {}", t.volume);
+    }
     let hollow = "<Piece NumberOfPoints=\"4\" NumberOfPolys=\"0\"></Piece>\n";
     std::fs::write(d.join("hollow.vtp"), with(hollow)).unwrap();
     let e = surface_error(d, "vtk", "hollow.vtp");
@@ -596,6 +614,11 @@ fn conflicting_or_badly_named_held_sets_are_errors() {
          [[fixed]]\naxis = \"x\"\nabove = 0.099\nname = \"fixed0\"\n",
     );
     assert!(e.contains("fixed[1].name"), "{e}");
+    // An emoji sequence joins its emoji with U+200D: a name, not a hidden character.
+    let text = format!(
+        "{HELD}[[fixed]]\naxis = \"x\"\nbelow = 0.001\nname = \"\u{1F468}\u{200D}\u{1F469}\u{200D}\u{1F467}\"\n"
+    );
+    Tissue::from_scene(&Scene::from_toml_str(&text, Path::new(".")).unwrap()).unwrap();
     // The scene's own name is printed by `info`: an escape sequence in it cleared the
     // terminal.
     let text = format!("name = \"\\u001b[2J\"\n{HELD}");

@@ -341,19 +341,55 @@ fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
 }
 
 /// An XML VTK `<Piece>` element: its byte range in the file, its tag text, and whether it
-/// holds a `<Points>` element.
+/// holds points (a `<Points>` element and a declared `NumberOfPoints` that is not 0).
 struct PieceSpan {
     range: std::ops::Range<usize>,
     tag: String,
     has_points: bool,
+    has_points_element: bool,
 }
 
-/// The `<Piece>` elements before any appended data (raw appended bytes may hold anything).
+/// `bytes` with the text of every XML comment (`<!-- ... -->`) blanked out, so that a tag
+/// in a comment is not taken for one (positions unchanged).
+fn without_comments(bytes: &[u8]) -> Cow<'_, [u8]> {
+    let Some(first) = find(bytes, b"<!--") else {
+        return Cow::Borrowed(bytes);
+    };
+    let mut out = bytes.to_vec();
+    let mut from = first;
+    while let Some(i) = find(&out[from..], b"<!--") {
+        let at = from + i;
+        let end = find(&out[at + 4..], b"-->").map_or(out.len(), |e| at + 4 + e + 3);
+        out[at..end].iter_mut().for_each(|b| *b = b' ');
+        from = end;
+        if from >= out.len() {
+            break;
+        }
+    }
+    Cow::Owned(out)
+}
+
+/// The `<Piece>` elements before any appended data (raw appended bytes may hold
+/// anything), comments left out.
 fn pieces(bytes: &[u8]) -> Vec<PieceSpan> {
     let end = find(bytes, b"<AppendedData").unwrap_or(bytes.len());
-    let bytes = &bytes[..end];
+    let view = without_comments(&bytes[..end]);
+    let bytes = &view[..];
     let is_name_end =
         |b: Option<&u8>| b.is_none_or(|b| b.is_ascii_whitespace() || b"/>".contains(b));
+    // The end of the element from `from`: past `</Piece` and blanks up to its `>`.
+    let close = |from: usize| -> usize {
+        let mut at = from;
+        while let Some(i) = find(&bytes[at..], b"</Piece") {
+            let tail = at + i + b"</Piece".len();
+            let rest = bytes[tail..].iter().position(|b| !b.is_ascii_whitespace());
+            if let Some(r) = rest.filter(|&r| bytes[tail + r] == b'>') {
+                return tail + r + 1;
+            }
+            at = tail;
+        }
+        bytes.len()
+    };
     let mut out = Vec::new();
     let mut from = 0;
     while let Some(i) = find(&bytes[from..], b"<Piece") {
@@ -362,25 +398,27 @@ fn pieces(bytes: &[u8]) -> Vec<PieceSpan> {
         if !is_name_end(bytes.get(from)) {
             continue;
         }
-        let Some(close) = bytes[from..].iter().position(|&b| b == b'>') else {
+        let Some(gt) = bytes[from..].iter().position(|&b| b == b'>') else {
             break;
         };
-        let tag_end = from + close;
+        let tag_end = from + gt;
         let tag = String::from_utf8_lossy(&bytes[at..tag_end]).into_owned();
         let (body, stop) = if bytes[tag_end - 1] == b'/' {
             (&bytes[tag_end..tag_end], tag_end + 1)
         } else {
-            let stop = find(&bytes[tag_end..], b"</Piece>")
-                .map_or(bytes.len(), |e| tag_end + e + b"</Piece>".len());
+            let stop = close(tag_end);
             (&bytes[tag_end..stop], stop)
         };
-        let has_points = body
+        let has_points_element = body
             .windows(b"<Points".len() + 1)
             .any(|w| w.starts_with(b"<Points") && is_name_end(w.last()));
+        let declared_zero =
+            attribute(&tag, "NumberOfPoints").is_some_and(|n| n.trim().parse::<u64>() == Ok(0));
         out.push(PieceSpan {
             range: at..stop,
             tag,
-            has_points,
+            has_points: has_points_element && !declared_zero,
+            has_points_element,
         });
         from = stop;
     }
@@ -662,7 +700,7 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
     let spans = self::pieces(bytes);
     for (k, p) in spans.iter().enumerate() {
         let declared = attribute(&p.tag, "NumberOfPoints").map(str::trim);
-        if !p.has_points && declared.is_some_and(|n| n != "0") {
+        if !p.has_points_element && declared.is_some_and(|n| n.parse::<u64>() != Ok(0)) {
             return Err(bad(
                 path,
                 format!(

@@ -182,15 +182,16 @@ fn check_vector_lengths(table: &toml::Table, path: &str) -> Result<(), SceneErro
 
 /// The first character of `text` that a name must not hold because it acts on a terminal
 /// or a file instead of being seen: a control character (escape, NUL, carriage return ...),
-/// a Unicode line or paragraph separator, a bidirectional override or isolate, or a
-/// zero-width or byte-order mark. A scene name with `ESC [2J` cleared the terminal of
+/// a Unicode line or paragraph separator, a bidirectional override, isolate or mark, or a
+/// zero-width space or byte-order mark. (The zero-width joiners, U+200C and U+200D, are
+/// part of emoji sequences and of several scripts: they pass.) A scene name with `ESC [2J` cleared the terminal of
 /// `needlesim info`; a set name with NUL reached the `reactions.csv` header.
 pub fn hidden_character(text: &str) -> Option<char> {
     text.chars().find(|&c| {
         c.is_control()
             || matches!(
                 c,
-                '\u{2028}' | '\u{2029}' | '\u{200B}'..='\u{200F}' | '\u{202A}'..='\u{202E}'
+                '\u{2028}' | '\u{2029}' | '\u{200B}' | '\u{200E}' | '\u{200F}' | '\u{202A}'..='\u{202E}'
                     | '\u{2066}'..='\u{2069}' | '\u{FEFF}'
             )
     })
