@@ -43,8 +43,8 @@ pub use needlesim_needle as needle;
 #[cfg(feature = "render")]
 pub use needlesim_view as view;
 pub use runner::{
-    make_backend, run_scene, start_simulation, start_simulation_on, RunError, RunOptions,
-    RunSummary, CHECKPOINT_FILE,
+    make_backend, run_scene, start_simulation, start_simulation_on, time_step_warning, RunError,
+    RunOptions, RunSummary, CHECKPOINT_FILE, MAX_PROBED_NODES,
 };
 
 /// The default scene of `needlesim run` without a scene file: the paper's experiment, a

@@ -386,8 +386,33 @@ impl Outputs {
 }
 
 /// The most nodes a run probes for its stable time step when `physics.dt` is given in
-/// seconds ([`run_scene`]'s warning).
-const MAX_PROBED_NODES: usize = 100_000;
+/// seconds ([`time_step_warning`]).
+pub const MAX_PROBED_NODES: usize = 100_000;
+
+/// A warning when `physics.dt` is given in seconds and exceeds the largest stable step of
+/// `tissue` at its initial state (the probe of `dt = "auto"`, [`Tissue::critical_dt`]):
+/// a run that does not diverge (nothing loads the tissue) gives no other sign (a scene
+/// with dt = 1 s ran its whole needle script between two steps without a word). The
+/// probe costs about a hundred force evaluations on a CPU copy, so tissues of more than
+/// [`MAX_PROBED_NODES`] nodes are not probed. `run_scene` and Python's `Simulation`
+/// report it.
+pub fn time_step_warning(scene: &Scene, tissue: &Tissue) -> Result<Option<String>, RunError> {
+    let needlesim_core::scene::TimeStep::Seconds(dt) = scene.physics.dt else {
+        return Ok(None);
+    };
+    if tissue.n_mesh > MAX_PROBED_NODES {
+        return Ok(None);
+    }
+    let critical = tissue.critical_dt()?;
+    Ok((dt > critical).then(|| {
+        format!(
+            "physics.dt = {dt} s is {:.1} times the largest stable step estimated at the \
+             initial state ({critical:.3e} s, as `needlesim info` prints): the run may \
+             diverge, or step past the needle's script; use dt = \"auto\"",
+            dt / critical
+        )
+    }))
+}
 
 /// Builds and runs a scene. `progress(steps_done, steps_total)` is called after every
 /// frame. A scene with a `[needle]` table also writes the needle force of every step
@@ -409,24 +434,9 @@ pub fn run_scene(
     }
     let prep = Simulation::prepare(scene)?;
     let dt = prep.tissue.step.dt as f64;
-    // A time step given in seconds above the stable one: said, since a run that does
-    // not diverge (nothing loads the tissue) gives no other sign (a scene with dt = 1 s
-    // ran its whole needle script between two steps without a word). The probe costs
-    // about a hundred force evaluations, so only up to MAX_PROBED_NODES nodes.
     let mut warnings = Vec::new();
-    if scene.physics.dt != needlesim_core::scene::TimeStep::Auto
-        && options.resume.is_none()
-        && prep.tissue.n_mesh <= MAX_PROBED_NODES
-    {
-        let critical = prep.tissue.critical_dt()?;
-        if dt > critical {
-            warnings.push(format!(
-                "physics.dt = {dt:e} s is {:.1} times the largest stable step estimated at \
-                 the initial state ({critical:.3e} s, as `needlesim info` prints): the run \
-                 may diverge, or step past the needle's script; use dt = \"auto\"",
-                dt / critical
-            ));
-        }
+    if options.resume.is_none() {
+        warnings.extend(time_step_warning(scene, &prep.tissue)?);
     }
     let (backend, warning) =
         make_backend(scene, prep.tissue.clone(), options.backend, options.threads)?;

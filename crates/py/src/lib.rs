@@ -218,8 +218,16 @@ impl PySimulation {
         let parsed = scene.scene().map_err(value_error)?;
         let choice = backend_choice(backend)?;
         let prep = Simulation::prepare(&parsed).map_err(sim_error)?;
+        let mut warnings = match checkpoint {
+            None => needlesim::time_step_warning(&parsed, &prep.tissue)
+                .map_err(run_error)?
+                .into_iter()
+                .collect(),
+            Some(_) => Vec::new(),
+        };
         let (b, warning) =
             make_backend(&parsed, prep.tissue.clone(), choice, threads).map_err(run_error)?;
+        warnings.extend(warning);
         let masses = prep.tissue.masses.clone();
         let nb = &prep.tissue.neighbours;
         let rows = prep.tissue.n_mesh * nb.k;
@@ -233,7 +241,7 @@ impl PySimulation {
         Ok(PySimulation {
             sim: Arc::new(Mutex::new(sim)),
             busy: Arc::default(),
-            warnings: warning.into_iter().collect(),
+            warnings,
             masses,
             built_neighbours,
             scene,

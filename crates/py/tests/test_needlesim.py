@@ -466,3 +466,13 @@ def test_fit_prony_fits_a_record_in_any_units():
         (g, tau), = fit.terms
         assert abs(g - 0.6) < 1e-6 and abs(tau / time_unit - 2.0) < 1e-5, fit
         assert abs(fit.instantaneous / force_unit - 2.0) < 1e-6, fit
+
+
+def test_a_time_step_above_the_stable_one_is_in_the_warnings():
+    # The command line warned; Python's Simulation said nothing.
+    with open(INSERT_EXTRACT, "rb") as f:
+        scene = tomllib.load(f)
+    assert needlesim.Simulation.from_dict(scene, threads=1, base_dir=INSERT_EXTRACT.parent).warnings == []
+    scene["physics"]["dt"] = 1.0
+    sim = needlesim.Simulation.from_dict(scene, threads=1, base_dir=INSERT_EXTRACT.parent)
+    assert any(w.startswith("physics.dt = 1 s is") for w in sim.warnings), sim.warnings
