@@ -66,6 +66,14 @@ pub fn parse_vary(spec: &str) -> Result<(String, Vec<toml::Value>), SweepError> 
     ))
 }
 
+/// `text` cut to its first 60 characters, for a message (a value list can be long).
+fn shortened(text: &str) -> String {
+    match text.char_indices().nth(60) {
+        Some((at, _)) => format!("{}...", &text[..at]),
+        None => text.to_string(),
+    }
+}
+
 /// The comma-separated values of a `--vary`, commas inside brackets, braces or quotes
 /// kept (`[-0.11,0.05,0.05],[-0.11,0.04,0.05]` is two arrays; it was six fragments, each
 /// taken as a string); an unclosed bracket or quote is an error.
@@ -90,7 +98,11 @@ fn split_values(values: &str) -> Result<Vec<&str>, String> {
             ']' | '}' => {
                 depth -= 1;
                 if depth < 0 {
-                    return Err(format!("`{values}` closes a bracket it never opened"));
+                    return Err(format!(
+                        "value {} (`{}`) closes a bracket it never opened",
+                        out.len(),
+                        shortened(&values[start..=i])
+                    ));
                 }
             }
             ',' if depth == 0 => {
@@ -101,7 +113,11 @@ fn split_values(values: &str) -> Result<Vec<&str>, String> {
         }
     }
     if quote.is_some() || depth != 0 {
-        return Err(format!("`{values}` leaves a quote or bracket open"));
+        return Err(format!(
+            "value {} (`{}`) leaves a quote or bracket open",
+            out.len(),
+            shortened(&values[start..])
+        ));
     }
     out.push(&values[start..]);
     Ok(out)
@@ -393,5 +409,13 @@ mod vary_tests {
         assert!(parse_vary("x=[1,2").is_err());
         assert!(parse_vary("x=1]").is_err());
         assert!(parse_vary("x=\"open").is_err());
+        // The message names the value, not the whole list (7 kB for 1,000 values).
+        let long: Vec<String> = (0..1000).map(|i| format!("{i}.0")).collect();
+        let mut values = long.clone();
+        values[778] = "[5777.0".into();
+        let e = parse_vary(&format!("x={}", values.join(","))).unwrap_err().to_string();
+        assert!(e.contains("value 778 (`[5777.0") && e.len() < 400, "{e}");
+        let e = parse_vary("x=1,2,3]").unwrap_err().to_string();
+        assert!(e.contains("value 2 (`3]`)"), "{e}");
     }
 }
