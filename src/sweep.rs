@@ -413,7 +413,9 @@ mod vary_tests {
         let long: Vec<String> = (0..1000).map(|i| format!("{i}.0")).collect();
         let mut values = long.clone();
         values[778] = "[5777.0".into();
-        let e = parse_vary(&format!("x={}", values.join(","))).unwrap_err().to_string();
+        let e = parse_vary(&format!("x={}", values.join(",")))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("value 778 (`[5777.0") && e.len() < 400, "{e}");
         let e = parse_vary("x=1,2,3]").unwrap_err().to_string();
         assert!(e.contains("value 2 (`3]`)"), "{e}");

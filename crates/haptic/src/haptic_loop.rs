@@ -62,11 +62,24 @@ impl Default for HapticConfig {
     }
 }
 
+/// `v` for a message: plainly between 1e-4 and 1e6, in e-notation beyond (1e-300 Hz was
+/// printed with 300 digits).
+fn readable(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e6).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// Why the loop did not start or stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum HapticError {
     /// The period is not a whole number of time steps.
-    #[error("a haptic rate of {rate} Hz (period {period} s) is not a whole number of the scene's time steps of {dt} s")]
+    #[error(
+        "a haptic rate of {} Hz (period {} s) is not a whole number of the scene's time steps of {} s",
+        readable(*rate), readable(*period), readable(*dt)
+    )]
     Rate {
         /// Ticks per second asked for.
         rate: f64,
@@ -76,7 +89,7 @@ pub enum HapticError {
         dt: f64,
     },
     /// A setting is out of range.
-    #[error("haptic setting `{name}` = {value} is out of range ({expected})")]
+    #[error("haptic setting `{name}` = {} is out of range ({expected})", readable(*value))]
     Setting {
         /// The setting.
         name: &'static str,

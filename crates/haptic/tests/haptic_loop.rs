@@ -160,6 +160,9 @@ fn the_loop_names_what_is_wrong() {
             matches!(e, Some(HapticError::Setting { name: "rate", .. })),
             "{rate}: {e:?}"
         );
+        // In e-notation when tiny (1e-300 Hz printed 300 digits).
+        let text = e.unwrap().to_string();
+        assert!(text.len() < 300, "{text}");
     }
     let mut c = HapticConfig::default();
     c.coupling.stiffness = -1.0;
