@@ -727,6 +727,18 @@ fn vectors_with_extra_elements_are_refused() {
             .to_string();
         assert!(e.contains(key) && e.contains("elements"), "{key}: {e}");
     }
+    // Too few in a keyframe: the whole path (serde's message named only the keyframe).
+    let base = include_str!("../scenes/needle_insert_extract.toml");
+    let text = base.replacen(
+        "action = \"move\"\ndirection = [1.0, 0.0, 0.0]",
+        "action = \"move\"\ndirection = [1.0, 0.0]",
+        1,
+    );
+    assert_ne!(text, base);
+    let e = Scene::from_toml_str(&text, Path::new("scenes"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("needle.keyframe[0].direction"), "{e}");
 }
 
 /// Needle parameters of absurd size are named (1e308 N of cutting force ran into a

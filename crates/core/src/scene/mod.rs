@@ -149,9 +149,10 @@ const VECTOR_KEYS: &[&str] = &[
     "velocity",
 ];
 
-/// Refuses a 3-vector key given more than three elements: serde's fixed-size arrays read
-/// the first three and drop the rest, so `gravity = [0, -9.81, 0, "junk"]` was accepted
-/// (too few elements are refused by the parser).
+/// Refuses a 3-vector key given other than three elements, naming its whole path: serde's
+/// fixed-size arrays read the first three and drop the rest, so `gravity = [0, -9.81, 0,
+/// "junk"]` was accepted, and too few were refused without the key's name inside a
+/// keyframe.
 fn check_vector_lengths(table: &toml::Table, path: &str) -> Result<(), SceneError> {
     for (key, value) in table {
         let here = if path.is_empty() {
@@ -160,7 +161,7 @@ fn check_vector_lengths(table: &toml::Table, path: &str) -> Result<(), SceneErro
             format!("{path}.{key}")
         };
         match value {
-            toml::Value::Array(a) if VECTOR_KEYS.contains(&key.as_str()) && a.len() > 3 => {
+            toml::Value::Array(a) if VECTOR_KEYS.contains(&key.as_str()) && a.len() != 3 => {
                 return Err(SceneError::invalid(
                     here,
                     format!("has {} elements: a vector has three, [x, y, z]", a.len()),
