@@ -213,9 +213,14 @@ impl PySimulation {
         scene: SceneText,
         backend: Option<&str>,
         threads: Option<usize>,
-        checkpoint: Option<Checkpoint>,
+        checkpoint: Option<(Checkpoint, &std::path::Path)>,
     ) -> PyResult<Self> {
-        let parsed = scene.scene().map_err(value_error)?;
+        // A scene stored in a checkpoint is named by the file in its errors.
+        let parsed = match &checkpoint {
+            Some((_, file)) => scene.scene_stored_in(file),
+            None => scene.scene(),
+        }
+        .map_err(value_error)?;
         let choice = backend_choice(backend)?;
         let prep = Simulation::prepare(&parsed).map_err(sim_error)?;
         let mut warnings = match checkpoint {
@@ -233,7 +238,7 @@ impl PySimulation {
         let rows = prep.tissue.n_mesh * nb.k;
         let built_neighbours = (nb.index[..rows].to_vec(), nb.weight[..rows].to_vec(), nb.k);
         let sim = match checkpoint {
-            Some(c) => prep.resume(b, c),
+            Some((c, _)) => prep.resume(b, c),
             None => prep.start(b),
         }
         .map_err(sim_error)?;
@@ -450,9 +455,7 @@ impl PySimulation {
             .scene
             .take()
             .ok_or_else(|| value_error(needlesim::needle::CheckpointError::NoScene))?;
-        // Its errors name the file the scene is stored in.
-        scene.scene_stored_in(&path).map_err(value_error)?;
-        Self::build(scene, backend, threads, Some(c))
+        Self::build(scene, backend, threads, Some((c, &path)))
     }
 
     /// Most steps `history()` keeps (None, the default: every step, 160 bytes a

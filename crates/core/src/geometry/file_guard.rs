@@ -618,22 +618,10 @@ fn check_legacy_vtk(path: &Path, body: &[u8], size: u64) -> Result<(), GeometryE
 /// hold a zlib stream that vtkio inflated to 3 GB before it failed.
 pub const MAX_SURFACE_ITEMS: u64 = 1 << 25;
 
-/// The tags named `name` (`<name ...>`, without the brackets) in `text`.
-fn tags<'a>(text: &'a str, name: &str) -> Vec<&'a str> {
-    let open = format!("<{name}");
-    text.match_indices(open.as_str())
-        .map(|(at, _)| {
-            let tag = &text[at + open.len()..];
-            &tag[..tag.find('>').unwrap_or(tag.len())]
-        })
-        .filter(|tag| tag.is_empty() || tag.starts_with(|c: char| c.is_whitespace() || c == '/'))
-        .collect()
-}
-
 fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryError> {
     let text = String::from_utf8_lossy(bytes);
-    let pieces = tags(&text, "Piece");
-    if pieces.iter().any(|tag| attribute(tag, "Source").is_some()) {
+    let spans = pieces(bytes);
+    if spans.iter().any(|p| attribute(&p.tag, "Source").is_some()) {
         return Err(bad(
             path,
             "its pieces are other files (a parallel VTK file): merge them into one .vtp or \
@@ -644,7 +632,7 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
     let most = size.saturating_mul(ZLIB_MAX_RATIO) / 4;
     // Declared points and cells over every piece: the most any appended array may hold.
     let (mut points, mut cells) = (0u64, 0u64);
-    for tag in pieces {
+    for tag in spans.iter().map(|p| p.tag.as_str()) {
         for name in [
             "NumberOfPoints",
             "NumberOfCells",
@@ -697,7 +685,6 @@ fn check_xml_vtk(path: &Path, bytes: &[u8], size: u64) -> Result<(), GeometryErr
         .saturating_add(cells.saturating_mul(128))
         .saturating_add(4096);
     check_appended_zlib(path, bytes, &text, budget)?;
-    let spans = self::pieces(bytes);
     for (k, p) in spans.iter().enumerate() {
         let declared = attribute(&p.tag, "NumberOfPoints").map(str::trim);
         if !p.has_points_element && declared.is_some_and(|n| n.parse::<u64>() != Ok(0)) {
