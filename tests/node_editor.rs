@@ -4,6 +4,7 @@
 
 mod common;
 use common::*;
+use needlesim::core::models::ShapeArray;
 use needlesim::core::scene::{NodeVolumes, PointBasedParams};
 use needlesim::needle::NodeEditor;
 use needlesim::{Backend, CpuBackend, Material, NodeField, Threading, Tissue};
@@ -135,6 +136,96 @@ fn added_nodes_create_no_artificial_strain() {
                 "{name} at {angle} rad: force {worst} N after additions ({} nodes)",
                 n + 5
             );
+        }
+    }
+}
+
+/// The handover of node edits ([`needlesim::needle::handover`]) rests on two claims of the
+/// editor, checked here on every model with the tissue strained (random node offsets up to
+/// 1 mm) and three nodes added. Each evaluation starts from a copy of the same tissue, so
+/// that the co-rotated models' warm-start rotations are iterated the same number of times:
+/// - [`NodeEditor::reach_since`] holds every node whose elastic force removing the added
+///   nodes changes: every node outside it has bitwise the same force with and without
+///   the added nodes;
+/// - [`NodeEditor::forces_before`] gives bitwise the forces the nodes in it have once the
+///   additions are removed, and leaves the rows, the shape information and the active
+///   count as it found them.
+#[test]
+fn forces_before_additions_are_those_after_removing_them() {
+    for (name, material) in all_models().into_iter().chain([PBA_DENSITY]) {
+        let (mut backend, mut editor, rest) = setup(material, 4);
+        let mut rng = Lcg(5);
+        let n = backend.n_active();
+        let mut pos = read(&mut backend, NodeField::Position);
+        for p in pos.iter_mut().take(n) {
+            for c in p.iter_mut().take(3) {
+                *c += (1e-3 * (rng.next() - 0.5)) as f32;
+            }
+        }
+        backend.write(NodeField::Position, 0, &pos[..n]).unwrap();
+        for _ in 0..3 {
+            let p = inside(&mut rng);
+            let seeds = editor.rings(&[nearest(&rest, p)], 2);
+            editor.add_node(&mut backend, p, [0.0; 3], &seeds).unwrap();
+        }
+        let reach = editor.reach_since(0);
+        assert!(!reach.is_empty() && reach.iter().all(|&j| (j as usize) < n));
+        let twin = |b: &CpuBackend| CpuBackend::new(b.tissue().clone(), Threading::Single).unwrap();
+        // With and without the added nodes, full evaluations.
+        let (mut with, mut without) = (twin(&backend), twin(&backend));
+        let mut removed = editor.clone();
+        for _ in 0..3 {
+            removed.remove_last(&mut without).unwrap();
+        }
+        let mut partial = twin(&without);
+        with.compute_forces();
+        without.compute_forces();
+        let (fw, fo) = (
+            read(&mut with, NodeField::Force),
+            read(&mut without, NodeField::Force),
+        );
+        for j in (0..n).filter(|j| reach.binary_search(&(*j as u32)).is_err()) {
+            assert_eq!(
+                fw[j][..3],
+                fo[j][..3],
+                "{name}: node {j} outside the reach changed"
+            );
+        }
+        // Put back and evaluated in place, against the removal's partial evaluation.
+        let rows = backend.tissue().neighbours.clone();
+        let shape = editor.shape().clone();
+        let before = editor.forces_before(&mut backend, 0, &reach).unwrap();
+        assert_eq!(
+            backend.tissue().neighbours,
+            rows,
+            "{name}: rows written again"
+        );
+        assert!(editor.shape() == &shape, "{name}: shape mirror");
+        let per_step = [
+            ShapeArray::Rotation,
+            ShapeArray::ClusterCentre,
+            ShapeArray::FirstPass,
+            ShapeArray::Viscous,
+        ];
+        for ((a, now), (_, then)) in backend
+            .tissue()
+            .shape
+            .bytes()
+            .into_iter()
+            .zip(shape.bytes())
+        {
+            if !per_step.contains(&a) {
+                assert!(now == then, "{name}: {} written again", a.name());
+            }
+        }
+        assert_eq!(backend.n_active(), n + 3, "{name}: slots active again");
+        partial.compute_forces_on(&reach);
+        let mut expected = vec![[0.0f32; 4]; reach.len()];
+        partial
+            .read_nodes(NodeField::Force, &reach, &mut expected)
+            .unwrap();
+        for (k, &j) in reach.iter().enumerate() {
+            assert_eq!(before[k][..3], expected[k][..3], "{name}: node {j}");
         }
     }
 }

@@ -31,6 +31,7 @@ pub mod checkpoint;
 pub mod config;
 mod error;
 pub mod friction;
+pub mod handover;
 pub mod material_point;
 pub mod needle;
 pub mod node_editor;

@@ -206,6 +206,143 @@ impl NodeEditor {
         self.frame.global([r[0], r[1], r[2]])
     }
 
+    /// The nodes whose elastic force removing the additions from log position `since` on
+    /// (the last `n_added() - since` of them) would change: every node whose neighbour row
+    /// they changed, and the nodes that row holds (with a nonzero weight) before and
+    /// after. A node's force sums the contributions of the neighbourhoods it belongs to,
+    /// and a neighbourhood's contribution depends only on its own row and its shape
+    /// information, which an edit changes together. The slots those additions took are
+    /// left out. Sorted, each once.
+    pub fn reach_since(&self, since: usize) -> Vec<u32> {
+        let adds = self.log.get(since..).unwrap_or(&[]);
+        let Some(first) = adds.first().map(|a| a.node as usize) else {
+            return Vec::new();
+        };
+        let k = self.nb.k;
+        let mut out = Vec::new();
+        for u in adds.iter().flat_map(|a| &a.undo) {
+            if let Undo::Row {
+                node,
+                index,
+                weight,
+            } = u
+            {
+                out.push(*node);
+                let t = *node as usize;
+                let now = self.nb.index[t * k..(t + 1) * k]
+                    .iter()
+                    .zip(&self.nb.weight[t * k..(t + 1) * k]);
+                for (j, w) in index.iter().zip(weight).chain(now) {
+                    if *w != 0.0 {
+                        out.push(*j);
+                    }
+                }
+            }
+        }
+        out.retain(|&j| (j as usize) < first);
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// [`NodeEditor::reach_since`] for the last addition alone: the nodes whose elastic
+    /// force removing the last added node can change.
+    pub fn removal_reach(&self) -> Vec<u32> {
+        self.reach_since(self.log.len().saturating_sub(1))
+    }
+
+    /// The elastic forces of `nodes` (all below the first slot the additions from log
+    /// position `since` on took) as they were before those additions, at the current
+    /// positions: the neighbour rows and static shape information the additions changed
+    /// are put back on the backend for one partial force evaluation, then the current
+    /// ones are written again and the additions' slots made active again (the editor's
+    /// own copy is not touched). Per-step arrays (warm-start rotations, first-pass
+    /// results, viscoelastic state) are left as they are. Without such additions, the
+    /// forces as they are.
+    pub fn forces_before(
+        &self,
+        backend: &mut dyn Backend,
+        since: usize,
+        nodes: &[u32],
+    ) -> Result<Vec<Vec4>, EditError> {
+        let adds = self.log.get(since..).unwrap_or(&[]);
+        if let Some(first) = adds.first() {
+            backend.set_n_active(first.node as usize)?;
+            self.put_back(backend, adds, false)?;
+        }
+        backend.compute_forces_on(nodes);
+        let mut f = vec![[0.0f32; 4]; nodes.len()];
+        let read = backend.read_nodes(NodeField::Force, nodes, &mut f);
+        if !adds.is_empty() {
+            self.put_back(backend, adds, true)?;
+            backend.set_n_active(self.n_active)?;
+        }
+        read?;
+        Ok(f)
+    }
+
+    /// Writes the rows and static shape bytes `adds` changed: as they were before them
+    /// (`current` false, latest addition first so that the oldest saved bytes are written
+    /// last) or as they are now.
+    fn put_back(
+        &self,
+        backend: &mut dyn Backend,
+        adds: &[Addition],
+        current: bool,
+    ) -> Result<(), SimError> {
+        let k = self.nb.k;
+        let arrays = self.shape.bytes();
+        let mut write = |u: &Undo| -> Result<(), SimError> {
+            match u {
+                Undo::Row {
+                    node,
+                    index,
+                    weight,
+                } => {
+                    let t = *node as usize;
+                    match current {
+                        true => backend.write_neighbour_rows(
+                            t,
+                            &self.nb.index[t * k..(t + 1) * k],
+                            &self.nb.weight[t * k..(t + 1) * k],
+                        ),
+                        false => backend.write_neighbour_rows(t, index, weight),
+                    }
+                }
+                Undo::Shape {
+                    array,
+                    offset,
+                    bytes,
+                } => {
+                    let (name, now) = &arrays[*array];
+                    if matches!(
+                        name,
+                        ShapeArray::Rotation
+                            | ShapeArray::ClusterCentre
+                            | ShapeArray::FirstPass
+                            | ShapeArray::Viscous
+                    ) {
+                        return Ok(());
+                    }
+                    let data = match current {
+                        true => &now[*offset..*offset + bytes.len()],
+                        false => &bytes[..],
+                    };
+                    backend.write_shape_bytes(*name, *offset, data)
+                }
+                Undo::Slot { .. } => Ok(()),
+            }
+        };
+        if current {
+            adds.iter().flat_map(|a| &a.undo).try_for_each(&mut write)
+        } else {
+            adds.iter()
+                .rev()
+                .flat_map(|a| a.undo.iter().rev())
+                .try_for_each(&mut write)
+        }
+    }
+
     /// Inverse mass of a free node.
     pub fn inverse_mass(&self) -> f32 {
         self.inv_mass

@@ -40,6 +40,7 @@
 //! not detected (one entry and one exit per needle path).
 
 mod constraint;
+mod handover;
 mod insertion;
 mod inside;
 mod needle_force;
@@ -477,8 +478,12 @@ impl Simulation {
             }
             return Err(e);
         }
+        self.hand_over_edits()?;
         self.constrain(&prev, &now)?;
         self.backend.compute_forces();
+        if self.state.nodes.is_empty() {
+            self.apply_handover()?;
+        }
         self.apply_friction(&prev, &now)?;
         self.stepper.finish_step(self.backend.as_mut())?;
         if self.state.record {

@@ -1,6 +1,7 @@
 //! The needle simulation's changing state: everything a step updates besides the backend's
 //! arrays and the node editor. A checkpoint stores it whole.
 
+use crate::handover::Handover;
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NeedleNode, NeedleSample};
 use crate::puncture::PunctureState;
@@ -94,6 +95,22 @@ pub(crate) struct NeedleState {
     /// Depth of the tip in the undeformed tissue in the last step, m.
     #[serde(default)]
     pub tissue_depth: Option<f64>,
+    /// The elastic forces node removals changed, still being handed over
+    /// ([`crate::handover`]).
+    pub handover: Option<Handover>,
+    /// This step's edits so far: the elastic force of each node a removal can change, as
+    /// it was before the step's first edit that could change it (sorted by node). Emptied
+    /// when the step's edits are done.
+    #[serde(skip)]
+    pub before_edits: Vec<(u32, [f32; 4])>,
+    /// The fewest nodes the node editor's log held during this step's edits (`None`
+    /// before the step's first edit; cleared when they are done): the additions above it
+    /// are this step's.
+    #[serde(skip)]
+    pub edit_low: Option<usize>,
+    /// Whether this step's edits added or removed a node other than the Tip node.
+    #[serde(skip)]
+    pub edit_shaft: bool,
     /// The force on the needle in the last step.
     pub force: NeedleForce,
     pub history: Vec<NeedleSample>,
@@ -131,6 +148,10 @@ impl NeedleState {
             denting: None,
             punctured: Vec::new(),
             tissue_depth: None,
+            handover: None,
+            before_edits: Vec::new(),
+            edit_low: None,
+            edit_shaft: false,
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,

@@ -113,6 +113,8 @@ impl Simulation {
         friction: FrictionState,
         placement: Placement,
     ) -> Result<(), EditError> {
+        self.mark_edit();
+        self.state.edit_shaft |= role != NodeRole::Tip;
         let cand = self.editor.rings(seeds, 2);
         let index = self.editor.add_node_placed(
             self.backend.as_mut(),
@@ -141,8 +143,14 @@ impl Simulation {
 
     /// Removes the newest needle node; removing the Surface or Exit node undoes its split.
     pub(super) fn remove(&mut self) -> Result<NeedleNode, EditError> {
+        self.capture_before_removal()?;
         self.editor.remove_last(self.backend.as_mut())?;
+        self.mark_edit();
+        if let Some(h) = self.state.handover.as_mut() {
+            h.keep_below(self.editor.n_active());
+        }
         let node = self.state.nodes.pop().ok_or(EditError::NothingToRemove)?;
+        self.state.edit_shaft |= node.role != NodeRole::Tip;
         self.low_water = self.low_water.min(self.state.nodes.len());
         if matches!(node.role, NodeRole::Surface | NodeRole::Exit) {
             let editor = &self.editor;

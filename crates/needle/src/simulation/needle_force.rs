@@ -188,6 +188,14 @@ impl Simulation {
             let mut f = vec![[0.0f32; 4]; m];
             let mut near = vec![[0.0f32; 4]; around.len()];
             let mut patch_pos = vec![[0.0f32; 4]; patch_nodes.len()];
+            // What is left of the handover of node edits ([`crate::handover`]): the mesh
+            // nodes' forces read with the rest, the needle nodes' added below.
+            let handover = self.handover_now();
+            let (mesh, needle) = handover.as_ref().map_or((0, 0), |(nodes, _)| {
+                let k = nodes.partition_point(|&j| (j as usize) < n0);
+                (k, nodes.len() - k)
+            });
+            let mut handed = vec![[0.0f32; 4]; mesh];
             {
                 let mut requests = vec![(NodeField::Force, (n0..n0 + m).into())];
                 let mut outs: Vec<&mut [needlesim_core::math::Vec4]> = vec![&mut f];
@@ -199,7 +207,30 @@ impl Simulation {
                     requests.push((NodeField::Position, patch_nodes.as_slice().into()));
                     outs.push(&mut patch_pos);
                 }
+                if let (Some((nodes, _)), true) = (&handover, mesh > 0) {
+                    requests.push((NodeField::Force, nodes[..mesh].into()));
+                    outs.push(&mut handed);
+                }
                 self.backend.read_many(&requests, &mut outs)?;
+            }
+            if let Some((nodes, add)) = &handover {
+                if mesh > 0 {
+                    super::handover::add_forces(&mut handed, &add[..mesh]);
+                    needlesim_core::boundary::write_scattered(
+                        self.backend.as_mut(),
+                        NodeField::Force,
+                        &nodes[..mesh],
+                        &handed,
+                    )?;
+                }
+                for (j, a) in nodes[mesh..mesh + needle].iter().zip(&add[mesh..]) {
+                    if let Some(fk) = f.get_mut(*j as usize - n0) {
+                        super::handover::add_forces(
+                            std::slice::from_mut(fk),
+                            std::slice::from_ref(a),
+                        );
+                    }
+                }
             }
             // The positions `constrain` wrote: the force evaluation does not move nodes.
             let p = std::mem::take(&mut self.state.positions);

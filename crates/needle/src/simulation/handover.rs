@@ -1,0 +1,140 @@
+//! The step's side of [`crate::handover`]: the elastic forces before the step's edits
+//! (recorded before each removal; for additions, evaluated with their rows put back), the
+//! difference once the edits are done, and the share added after each force evaluation.
+
+use super::Simulation;
+use crate::handover::{Handover, HANDOVER_TIME};
+use crate::node_editor::EditError;
+use crate::SimulationError;
+use needlesim_core::{NodeField, SimError};
+
+impl Simulation {
+    /// Notes that the step edits the node stack now: the editor's log is at its lowest
+    /// so far this step.
+    pub(super) fn mark_edit(&mut self) {
+        let n = self.editor.n_added();
+        self.state.edit_low = Some(self.state.edit_low.map_or(n, |l| l.min(n)));
+    }
+
+    /// Before removing the last added node: the elastic forces of the nodes the removal
+    /// can change, for those not yet recorded this step (per-length model only).
+    pub(super) fn capture_before_removal(&mut self) -> Result<(), EditError> {
+        self.mark_edit();
+        if !self.sheathed() {
+            return Ok(());
+        }
+        let recorded = &self.state.before_edits;
+        let fresh: Vec<u32> = self
+            .editor
+            .removal_reach()
+            .into_iter()
+            .filter(|j| recorded.binary_search_by_key(j, |e| e.0).is_err())
+            .collect();
+        if fresh.is_empty() {
+            return Ok(());
+        }
+        let f = self
+            .editor
+            .forces_before(self.backend.as_mut(), usize::MAX, &fresh)?;
+        let before = &mut self.state.before_edits;
+        before.extend(fresh.into_iter().zip(f));
+        before.sort_unstable_by_key(|e| e.0);
+        Ok(())
+    }
+
+    /// After the step's edits: the change of the elastic forces they made, on the nodes
+    /// that kept their slot, starts to be handed over (per-length model only).
+    pub(super) fn hand_over_edits(&mut self) -> Result<(), SimulationError> {
+        let Some(since) = self.state.edit_low.take() else {
+            return Ok(());
+        };
+        let mut before = std::mem::take(&mut self.state.before_edits);
+        let shaft = std::mem::take(&mut self.state.edit_shaft);
+        if !self.sheathed() || !shaft {
+            return Ok(());
+        }
+        // Slots from the first one this step's additions took (or the removals freed) on
+        // hold other nodes than before.
+        let kept = self.editor.n_mesh() + since;
+        before.retain(|e| (e.0 as usize) < kept);
+        let added: Vec<u32> = self
+            .editor
+            .reach_since(since)
+            .into_iter()
+            .filter(|&j| (j as usize) < kept && before.binary_search_by_key(&j, |e| e.0).is_err())
+            .collect();
+        if !added.is_empty() {
+            let f = self
+                .editor
+                .forces_before(self.backend.as_mut(), since, &added)
+                .map_err(|e| self.edit(e))?;
+            before.extend(added.into_iter().zip(f));
+            before.sort_unstable_by_key(|e| e.0);
+        }
+        if before.is_empty() {
+            return Ok(());
+        }
+        let nodes: Vec<u32> = before.iter().map(|e| e.0).collect();
+        let after = self
+            .editor
+            .forces_before(self.backend.as_mut(), usize::MAX, &nodes)
+            .map_err(|e| self.edit(e))?;
+        let change: Vec<[f64; 3]> = before
+            .iter()
+            .zip(&after)
+            .map(|((_, b), a)| [0, 1, 2].map(|c| b[c] as f64 - a[c] as f64))
+            .collect();
+        let now = self.stepper.time();
+        if let Some(h) = self.state.handover.as_mut() {
+            h.keep_below(kept);
+        }
+        self.state.handover = Some(Handover::start(
+            self.state.handover.as_ref(),
+            now,
+            &nodes,
+            &change,
+            HANDOVER_TIME,
+        ));
+        Ok(())
+    }
+
+    /// What is left of the handover at this step (and drops it once done): its nodes
+    /// (sorted) and the forces to add to theirs.
+    pub(super) fn handover_now(&mut self) -> Option<(Vec<u32>, Vec<[f64; 3]>)> {
+        let now = self.stepper.time();
+        let h = self.state.handover.as_mut()?;
+        h.keep_below(self.backend.n_active());
+        if h.done(now) || h.nodes.is_empty() {
+            self.state.handover = None;
+            return None;
+        }
+        Some((h.nodes.clone(), h.at(now)))
+    }
+
+    /// After the force evaluation with no needle node in the tissue (the needle's own
+    /// force pass folds the handover into its read, [`Simulation::apply_friction`]):
+    /// adds what is left of the handover to the elastic forces.
+    pub(super) fn apply_handover(&mut self) -> Result<(), SimError> {
+        let Some((nodes, add)) = self.handover_now() else {
+            return Ok(());
+        };
+        let mut f = vec![[0.0f32; 4]; nodes.len()];
+        self.backend.read_nodes(NodeField::Force, &nodes, &mut f)?;
+        add_forces(&mut f, &add);
+        needlesim_core::boundary::write_scattered(
+            self.backend.as_mut(),
+            NodeField::Force,
+            &nodes,
+            &f,
+        )
+    }
+}
+
+/// `f[k] += add[k]` (xyz).
+pub(super) fn add_forces(f: &mut [[f32; 4]], add: &[[f64; 3]]) {
+    for (f, a) in f.iter_mut().zip(add) {
+        for (x, y) in f.iter_mut().zip(a) {
+            *x = (*x as f64 + y) as f32;
+        }
+    }
+}
