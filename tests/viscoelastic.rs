@@ -364,10 +364,11 @@ fn a_checkpoint_mid_relaxation_resumes_bitwise() {
 /// against its elastic twin: the force at 25 mm rises with the insertion speed (5 to
 /// 20 mm/s), and while the needle is held 3 s it relaxes; the elastic scene does neither
 /// (within 2% and 3%: its force is rate independent; what the elastic hold loses is its
-/// tissue settling after the stop). Measured (dev machine, `needlesim report --realism`):
-/// 1.112 -> 1.282 N (+15%) against 1.365 -> 1.360 N; held after 20 mm/s 1.453 -> 1.252 N
-/// (-13.8% from 50 ms after the stop to 2.95 s), elastic 1.568 -> 1.554 N (-0.9%). The
-/// bounds: a rise above 8% and a drop above 8%.
+/// tissue settling after the stop). The force at 25 mm is the mean over 24 to 26 mm of
+/// depth. Measured (dev machine, this test, 2026-11-26): 1.149 -> 1.280 N (+11.4%)
+/// against 1.344 -> 1.349 N; held after 20 mm/s 1.458 -> 1.253 N (-14.1% from 50 ms
+/// after the stop to 2.95 s), elastic 1.564 -> 1.553 N (-0.7%). The bounds: a rise above
+/// 8% and a drop above 8%.
 #[test]
 fn the_viscoelastic_liver_force_rises_with_speed_and_relaxes_when_held() {
     let run = |name: &str, speed: f64| -> (f64, f64, f64) {
@@ -408,7 +409,14 @@ fn the_viscoelastic_liver_force_rises_with_speed_and_relaxes_when_held() {
                 .map(|a| (s.tip[a] - touch[a]) * s.direction[a])
                 .sum::<f64>()
         };
-        let f25 = at(&|s| depth_of(s) >= 0.025 && s.state == PunctureState::Inside);
+        // The mean over 24-26 mm: at 10 mm spacing a Shaft node is added near 25 mm, and
+        // the force a single step reads there depends on where in that event it falls.
+        let window: Vec<f64> = h
+            .iter()
+            .filter(|s| (0.024..=0.026).contains(&depth_of(s)) && s.state == PunctureState::Inside)
+            .map(|s| s.force.axial)
+            .collect();
+        let f25 = window.iter().sum::<f64>() / window.len() as f64;
         let held = at(&|s| s.time >= stop + 0.05);
         let end = at(&|s| s.time >= stop + 2.95);
         (f25, held, end)

@@ -87,7 +87,9 @@
 //! edit each surviving node keeps its force per length while a new one takes the value
 //! interpolated at its place, corrected so that the total does not change
 //! ([`reassign`]); the cutting element and the patch are carried by whatever node is the
-//! front. The needle force is therefore continuous across every event.
+//! front. The needle force is therefore continuous across every event. What an edit
+//! changes in the tissue's own elastic forces (the neighbour rows it rewrites or puts
+//! back) is handed over in time by [`crate::handover`].
 
 use glam::DVec3;
 
