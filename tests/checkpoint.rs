@@ -272,3 +272,33 @@ fn a_checkpoint_of_another_scene_is_refused_naming_the_part() {
     longer.name = "longer".into();
     assert!(resume(&longer, c).is_ok());
 }
+
+/// A checkpoint taken while a node edit's change of the tissue's forces is still being
+/// handed over ([`needlesim::needle::handover`], 40 ms after a Shaft node event): the
+/// resumed run continues bitwise as the uninterrupted one (the handover is part of the
+/// saved state; without it the resumed run would apply the new rows' forces at once).
+#[test]
+fn a_checkpoint_during_a_handover_resumes_bitwise() {
+    let scene = Scene::from_toml_str(INSERT_EXTRACT, Path::new("scenes")).unwrap();
+    let mut sim = start(&scene, Threading::Parallel);
+    sim.step_n(BEFORE).unwrap();
+    // The next step that adds a needle node, then 10 steps (10 ms) into its handover.
+    let nodes = sim.needle_nodes().len();
+    let mut waited = 0;
+    while sim.needle_nodes().len() == nodes {
+        sim.step().unwrap();
+        waited += 1;
+        assert!(waited < 2_000, "no node added");
+    }
+    sim.step_n(10).unwrap();
+    let at = sim.steps();
+    let bytes = sim.checkpoint().unwrap().to_bytes();
+    sim.step_n(100).unwrap();
+    let straight = fingerprint(&mut sim);
+    let c = Checkpoint::from_bytes(&bytes, Path::new("mem")).unwrap();
+    let mut resumed = resume(&scene, c).unwrap();
+    assert_eq!(resumed.steps(), at);
+    resumed.step_n(100).unwrap();
+    let again = fingerprint(&mut resumed);
+    assert!(straight == again, "the resumed run differs");
+}
