@@ -467,6 +467,10 @@ impl Simulation {
         // caller moved the needle with `set_pose` in between.
         let now = self.state.needle.expect("needle present");
         self.state.prev = Some(now);
+        // Nothing of an earlier step's edits that ended in an error is carried over.
+        self.state.before_edits.clear();
+        self.state.edit_low = None;
+        self.state.edit_shaft = false;
         if let Err(e) = self.contact(&prev, &now) {
             // A motion refused as too fast was refused before the contact changed
             // anything: the step leaves no trace and the needle stays at its last pose
