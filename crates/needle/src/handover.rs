@@ -63,11 +63,15 @@
 //! share above 2% 0.6% to 0.2%; `needle_insert_extract.toml` share above 2% 3.2% to
 //! 2.5%; the friction-free liver still 0.00% from its cutting force.
 //!
-//! Cost: two partial force evaluations per Shaft node event (three with an addition), and
-//! while a handover runs the forces of its nodes (a few dozen) are read with the needle
-//! nodes' forces in the step's existing readback and written back; only after the needle
-//! has left the tissue does it read back on its own (`tests/needle.rs` counts the
-//! readbacks per step).
+//! Cost: a partial force evaluation with a read before every removal (Tip refreshes
+//! included: whether a Shaft edit follows in the same step is not known yet), one more
+//! with the additions put back when the step added nodes, and one after the edits; on
+//! the GPU each is a full force pass and a readback (its `compute_forces_on` evaluates
+//! every node). These extra passes also refine the co-rotated models' warm-start
+//! rotations once more, as the settle's evaluations already do. While a handover runs,
+//! the forces of its nodes (a few dozen) are read with the needle nodes' forces in the
+//! step's existing readback and written back; only after the needle has left the tissue
+//! does it read back on its own (`tests/needle.rs` counts the readbacks per step).
 //!
 //! Only the needle's default per-length friction model uses it: with the paper's friction
 //! model the simulation reproduces the paper's method as published.

@@ -266,18 +266,25 @@ impl NodeEditor {
         nodes: &[u32],
     ) -> Result<Vec<Vec4>, EditError> {
         let adds = self.log.get(since..).unwrap_or(&[]);
-        if let Some(first) = adds.first() {
-            backend.set_n_active(first.node as usize)?;
-            self.put_back(backend, adds, false)?;
-        }
-        backend.compute_forces_on(nodes);
         let mut f = vec![[0.0f32; 4]; nodes.len()];
-        let read = backend.read_nodes(NodeField::Force, nodes, &mut f);
-        if !adds.is_empty() {
-            self.put_back(backend, adds, true)?;
-            backend.set_n_active(self.n_active)?;
-        }
-        read?;
+        let mut evaluate = |backend: &mut dyn Backend| -> Result<(), SimError> {
+            if let Some(first) = adds.first() {
+                backend.set_n_active(first.node as usize)?;
+                self.put_back(backend, adds, false)?;
+            }
+            backend.compute_forces_on(nodes);
+            backend.read_nodes(NodeField::Force, nodes, &mut f)
+        };
+        let done = evaluate(backend);
+        // The current rows and slots go back whatever failed above (the first error is
+        // the one reported).
+        let restored = match adds.is_empty() {
+            true => Ok(()),
+            false => self
+                .put_back(backend, adds, true)
+                .and_then(|_| backend.set_n_active(self.n_active)),
+        };
+        done.and(restored)?;
         Ok(f)
     }
 

@@ -95,8 +95,8 @@ pub(crate) struct NeedleState {
     /// Depth of the tip in the undeformed tissue in the last step, m.
     #[serde(default)]
     pub tissue_depth: Option<f64>,
-    /// The elastic forces node removals changed, still being handed over
-    /// ([`crate::handover`]).
+    /// The elastic forces node edits (additions and removals) changed, still being
+    /// handed over ([`crate::handover`]).
     pub handover: Option<Handover>,
     /// This step's edits so far: the elastic force of each node a removal can change, as
     /// it was before the step's first edit that could change it (sorted by node). Emptied

@@ -23,19 +23,25 @@ impl Simulation {
         if !self.sheathed() {
             return Ok(());
         }
+        // This step's additions (the node about to go may be one of them: a Tip node
+        // refreshed and then replaced by the Exit node) are put back for the evaluation,
+        // so that what is recorded is the force at the start of the step; their slots
+        // are left out.
+        let since = self.state.edit_low.unwrap_or(self.editor.n_added());
+        let kept = self.editor.n_mesh() + since;
         let recorded = &self.state.before_edits;
         let fresh: Vec<u32> = self
             .editor
             .removal_reach()
             .into_iter()
-            .filter(|j| recorded.binary_search_by_key(j, |e| e.0).is_err())
+            .filter(|&j| (j as usize) < kept && recorded.binary_search_by_key(&j, |e| e.0).is_err())
             .collect();
         if fresh.is_empty() {
             return Ok(());
         }
         let f = self
             .editor
-            .forces_before(self.backend.as_mut(), usize::MAX, &fresh)?;
+            .forces_before(self.backend.as_mut(), since, &fresh)?;
         let before = &mut self.state.before_edits;
         before.extend(fresh.into_iter().zip(f));
         before.sort_unstable_by_key(|e| e.0);
