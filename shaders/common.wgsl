@@ -23,6 +23,10 @@ struct Params {
     max_speed_sq: f32,
     visco_a: vec4<f32>,
     visco_b: vec4<f32>,
+    viscosity: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
 }
 
 const WORKGROUP: u32 = 64u;

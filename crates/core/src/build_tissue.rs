@@ -36,15 +36,23 @@ impl Tissue {
 }
 
 impl Tissue {
-    /// The largest stable undamped time step of this tissue at its initial state, s
+    /// The largest stable time step of this tissue at its initial state, s
     /// ([`crate::stability::max_eigenvalue`] on a CPU copy, 40 power iterations: the
-    /// probe of `dt = "auto"`); infinite when no free node feels an elastic force.
+    /// probe of `dt = "auto"`; with a viscous material also
+    /// [`crate::stability::max_damping_eigenvalue`], combined by
+    /// [`crate::stability::damped_critical_dt`]); infinite when no free node feels an
+    /// elastic force.
     pub fn critical_dt(&self) -> Result<f64, SceneError> {
         let mut probe = CpuBackend::new(self.clone(), Threading::Parallel)
             .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
-        let est = crate::stability::max_eigenvalue(&mut probe, 40)
-            .map_err(|e| SceneError::invalid("physics.dt", e.to_string()))?;
-        Ok(est.critical_dt)
+        let err = |e: crate::SimError| SceneError::invalid("physics.dt", e.to_string());
+        let est = crate::stability::max_eigenvalue(&mut probe, 40).map_err(err)?;
+        if !self.shape.viscous() {
+            return Ok(est.critical_dt);
+        }
+        // A viscous material's dashpot, taken explicitly, shortens the stable step.
+        let c = crate::stability::max_damping_eigenvalue(&mut probe, 40).map_err(err)?;
+        Ok(crate::stability::damped_critical_dt(est.max_eigenvalue, c))
     }
 }
 

@@ -132,6 +132,8 @@ impl GpuBackend {
             max_speed_sq: f32::INFINITY,
             visco_a: [0.0; 4],
             visco_b: [0.0; 4],
+            viscosity: 0.0,
+            pad: [0.0; 3],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
         let model: Vec<(ShapeArray, wgpu::Buffer)> = tissue

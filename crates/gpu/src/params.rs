@@ -49,6 +49,10 @@ pub struct Params {
     pub visco_a: [f32; 4],
     /// `g_i (tau_i / dt) (1 - a_i)` of each Prony term.
     pub visco_b: [f32; 4],
+    /// Kelvin-Voigt shear viscosity, Pa s (Debunne with one material).
+    pub viscosity: f32,
+    /// Padding to the WGSL struct's 16-byte size.
+    pub pad: [f32; 3],
 }
 
 #[cfg(test)]
@@ -95,6 +99,7 @@ mod tests {
             ("max_speed_sq", offset_of!(Params, max_speed_sq)),
             ("visco_a", offset_of!(Params, visco_a)),
             ("visco_b", offset_of!(Params, visco_b)),
+            ("viscosity", offset_of!(Params, viscosity)),
         ];
         for (name, offset) in &rust {
             let found = wgsl.iter().find(|(n, _)| n == name);

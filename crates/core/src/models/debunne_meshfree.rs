@@ -35,13 +35,42 @@
 //! [`super::local_shape_matching`]) is factored out first, `eps_i = sym(R_i^T F_i) - I`,
 //! `P_i = R_i sigma_i`, which makes every rigid motion force free.
 //!
+//! # Tissue viscosity (Kelvin-Voigt)
+//!
+//! `viscosity = eta` (Pa s, default 0) puts a dashpot beside the elastic law: node i's
+//! stress gains the deviatoric viscous stress of its strain rate,
+//!
+//! `sigma_v,i = 2 eta_i dev(sym(L_i))`,  `L_i = sum_j w_ij (v_j - v_i) (x0_j - x0_i)^T A_i^-1`,
+//!
+//! the velocity gradient from the same point-set operator as `J_i` (exact for linear
+//! velocity fields); co-rotated, of `R_i^T L_i`, pushed by `R_i` like the elastic stress,
+//! so a rigid spin is not damped. It enters the first pass beside `P_i`, so the gather and
+//! its momentum balance are unchanged, and it dissipates `2 eta |dev sym L|^2` per unit
+//! volume exactly for a linear velocity field (`tests/viscosity.rs`). Shear only: the bulk
+//! viscosity of tissue is small, and a bulk dashpot would damp the stiff compression modes
+//! that set the explicit step (`dt = "auto"` accounts for what it adds,
+//! [`crate::stability`]). With several regions each has its own `eta` (the w lane of the
+//! node's material row).
+//!
+//! Why: the elastic tissue has only mass-proportional damping (`physics.damping`), a
+//! loss that falls as `1 / omega`, so a released load (a membrane that gives under the
+//! needle) rings at the tissue's own 100-500 Hz for a tenth of a second. Real tissue is
+//! lossy there: multifrequency MR elastography of human liver (Asbach et al., Magn. Reson.
+//! Med. 60:373-379, 2008) fits a spring of 1.16 kPa beside a spring of 1.97 kPa in series
+//! with a 7.3 Pa s dashpot, a loss tangent `G'' / G'` of 0.42 at 50 Hz and 0.25 at
+//! 100 Hz. A Kelvin-Voigt dashpot has the loss tangent `omega eta / mu`; the shipped
+//! needle scenes give each region `eta = 0.5 ms x mu` (0.16 at 50 Hz, 0.31 at 100 Hz, so
+//! within the measured band at the frequencies that ring). Unlike a Prony term
+//! ([`crate::models::viscoelastic`]) it leaves the quasi-static modulus unchanged: at the
+//! needle's strain rates (about 1/s) its stress is a thousandth of the elastic one.
+//!
 //! Shape information: rest positions with the node volume in w, inverse moment matrices (9
 //! floats per node), and for
 //! `corotated` the shape vectors and warm-start rotations of shape matching.
 
 use super::local_shape_matching::{cluster_frame, rest_positions, shape_vector, shape_vectors};
 use super::mls::{
-    default_hourglass, pack_first_pass, ContinuumArrays, ContinuumConstants, NodeVolumes,
+    default_hourglass, pack_first_pass, unpack, ContinuumArrays, ContinuumConstants, NodeVolumes,
     StressSplit,
 };
 use super::mueller2016_rotation::default_iterations;
@@ -51,7 +80,7 @@ use super::{
 };
 use crate::calibration::UncalibratedNeighbours;
 use crate::error::SceneError;
-use crate::math::{Vec4, QUAT_IDENTITY};
+use crate::math::{xyz, Vec4, QUAT_IDENTITY};
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Quat, Vec3};
 
@@ -84,6 +113,14 @@ pub struct DebunneParams {
     /// modulus is then the instantaneous one.
     #[serde(default, skip_serializing_if = "Prony::is_empty")]
     pub viscoelastic: Prony,
+    /// Shear viscosity eta of a Kelvin-Voigt dashpot beside the elastic law, Pa s
+    /// (module docs); 0 (the default): none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub viscosity: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl DebunneParams {
@@ -98,7 +135,14 @@ impl DebunneParams {
             hourglass: default_hourglass(),
             node_volumes: NodeVolumes::Cell,
             viscoelastic: Prony::elastic(),
+            viscosity: 0.0,
         }
+    }
+
+    /// `viscosity`: the Kelvin-Voigt shear viscosity in Pa s.
+    pub const fn with_viscosity(mut self, viscosity: f64) -> Self {
+        self.viscosity = viscosity;
+        self
     }
 
     /// `viscoelastic`: the Prony series.
@@ -151,13 +195,14 @@ impl TissueModel for DebunneParams {
         crate::validate::elastic_moduli(key, self.young_modulus, self.poisson_ratio)?;
         self.viscoelastic.validate(key)?;
         crate::validate::rotation_iterations_in_range(key, self.rotation_iterations)?;
-        crate::validate::non_negative_finite(&format!("{key}.hourglass"), self.hourglass)
+        crate::validate::non_negative_finite(&format!("{key}.hourglass"), self.hourglass)?;
+        crate::validate::non_negative_finite(&format!("{key}.viscosity"), self.viscosity)
     }
 
-    /// `[lambda, mu, alpha mu, 0]`.
+    /// `[lambda, mu, alpha mu, eta]`.
     fn material_row(&self) -> Vec4 {
         let c = self.constants();
-        [c.lambda, c.mu, c.hourglass, 0.0]
+        [c.lambda, c.mu, c.hourglass, self.viscosity as f32]
     }
 
     /// Rest position, inverse moment and first pass (and the frame when co-rotated).
@@ -183,6 +228,7 @@ impl TissueModel for DebunneParams {
             continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx)
                 .with_prony(self.viscoelastic),
             corotation,
+            viscous: self.viscosity > 0.0,
         }
     }
 }
@@ -212,6 +258,10 @@ pub struct Shape {
     pub continuum: ContinuumArrays,
     /// Shape vectors and warm-start rotations (`corotated = true` only).
     pub corotation: Option<Corotation>,
+    /// Some node has a viscosity (module docs): the first pass adds the viscous stress.
+    /// Set from the material, and by [`crate::models::ShapeInfo::build`] when a region's
+    /// material has one.
+    pub viscous: bool,
 }
 
 impl ModelState for Shape {
@@ -284,8 +334,13 @@ impl ModelState for Shape {
         let one = [c.lambda, c.mu, c.hourglass, 0.0];
         // `[lambda, mu, alpha mu]` of node i.
         let constants = |i: usize| material.map_or(one, |m| m[i]);
+        let viscous = self.viscous.then_some(Viscous {
+            velocities: input.velocities,
+            eta: self.params.viscosity as f32,
+            node_material: material,
+        });
         if !self.continuum.visco.is_empty() {
-            self.visco_first_pass(input, &constants);
+            self.visco_first_pass(input, &constants, viscous.as_ref());
             self.continuum.gather_forces(input, forces);
             return;
         }
@@ -302,9 +357,13 @@ impl ModelState for Shape {
         match &mut self.corotation {
             None => threads.map_nodes(&mut first[..n], |i| {
                 let [lambda, mu, hg, _] = constants(i);
-                first_pass(
+                let mut q = first_pass(
                     i, pos, rest, nb, &a_inv[i], rest[i][3], lambda, mu, hg, None,
-                )
+                );
+                if let Some(v) = &viscous {
+                    v.add(&mut q, i, rest, nb, &a_inv[i], None);
+                }
+                q
             }),
             Some(Corotation {
                 shape_vector,
@@ -329,6 +388,9 @@ impl ModelState for Shape {
                         hg,
                         Some(&r),
                     );
+                    if let Some(v) = &viscous {
+                        v.add(q, i, rest, nb, &a_inv[i], Some(&r));
+                    }
                 });
             }
         }
@@ -343,7 +405,12 @@ impl ModelState for Shape {
 impl Shape {
     /// The first pass of a viscoelastic material ([`crate::models::viscoelastic`]): the
     /// linear stress of `J` (co-rotated: of `R^T F - I`, pushed by `R`) relaxes.
-    fn visco_first_pass(&mut self, input: &ForceInput, constants: &(dyn Fn(usize) -> Vec4 + Sync)) {
+    fn visco_first_pass(
+        &mut self,
+        input: &ForceInput,
+        constants: &(dyn Fn(usize) -> Vec4 + Sync),
+        viscous: Option<&Viscous>,
+    ) {
         let ForceInput {
             positions: pos,
             nb,
@@ -397,6 +464,9 @@ impl Shape {
                     rest[i][3],
                     hg,
                 );
+                if let Some(v) = viscous {
+                    v.add(out, i, rest, nb, &a_inv[i], None);
+                }
             }),
             Some(Corotation {
                 shape_vector,
@@ -422,11 +492,79 @@ impl Shape {
                             rest[i][3],
                             hg,
                         );
+                        if let Some(v) = viscous {
+                            v.add(out, i, rest, nb, &a_inv[i], Some(&r));
+                        }
                     },
                 );
             }
         }
     }
+}
+
+/// What the first pass needs for the viscous stress (module docs).
+struct Viscous<'a> {
+    velocities: &'a [Vec4],
+    /// The material's eta, Pa s (without node materials).
+    eta: f32,
+    node_material: Option<&'a [Vec4]>,
+}
+
+impl Viscous<'_> {
+    /// Adds node i's viscous stress ([`viscous_stress`]) to its packed first pass `q`.
+    #[inline]
+    fn add(
+        &self,
+        q: &mut [f32; 12],
+        i: usize,
+        rest: &[Vec4],
+        nb: &Neighbours,
+        inverse_moment: &[f32; 9],
+        rotation: Option<&Mat3>,
+    ) {
+        let eta = self.node_material.map_or(self.eta, |m| m[i][3]);
+        if eta > 0.0 {
+            let l = velocity_gradient(i, self.velocities, rest, nb, inverse_moment);
+            let s = viscous_stress(&l, eta, rotation);
+            let m = (rest[i][3] * s * unpack(inverse_moment))
+                .transpose()
+                .to_cols_array();
+            for (a, b) in q.iter_mut().zip(m) {
+                *a += b;
+            }
+        }
+    }
+}
+
+/// The point-set velocity gradient `L_i = sum_j w_ij (v_j - v_i) (x0_j - x0_i)^T A_i^-1`
+/// (the operator of [`super::mls::displacement_gradient`] applied to velocities).
+#[inline]
+pub fn velocity_gradient(
+    i: usize,
+    velocities: &[Vec4],
+    rest: &[Vec4],
+    nb: &Neighbours,
+    inverse_moment: &[f32; 9],
+) -> Mat3 {
+    let (vi, x0i) = (xyz(velocities[i]), xyz(rest[i]));
+    let mut b = Mat3::ZERO;
+    for (_, j, w) in nb.live(i) {
+        let dv = w * (xyz(velocities[j]) - vi);
+        let d0 = xyz(rest[j]) - x0i;
+        b += Mat3::from_cols(dv * d0.x, dv * d0.y, dv * d0.z);
+    }
+    b * unpack(inverse_moment)
+}
+
+/// The Kelvin-Voigt viscous stress `2 eta dev(sym(L))` of a velocity gradient `L`;
+/// with a rotation `R`, `R 2 eta dev(sym(R^T L))` (module docs).
+#[inline]
+pub fn viscous_stress(l: &Mat3, eta: f32, rotation: Option<&Mat3>) -> Mat3 {
+    let local = rotation.map_or(*l, |r| r.transpose() * *l);
+    let d = (local + local.transpose()) * 0.5;
+    let mean = (d.x_axis.x + d.y_axis.y + d.z_axis.z) / 3.0;
+    let s = (d - Mat3::from_diagonal(Vec3::splat(mean))) * (2.0 * eta);
+    rotation.map_or(s, |r| *r * s)
 }
 
 /// Linear stress `sigma = lambda tr(eps) I + 2 mu eps` of `eps = sym(H)`, where `H` is the

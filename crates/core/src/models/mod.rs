@@ -310,8 +310,13 @@ impl ShapeInfo {
         ctx: BuildContext,
         node_material: Option<Vec<Vec4>>,
     ) -> ShapeInfo {
+        let mut model = material.build_shape(rest, nb, n, ctx);
+        // A region's viscosity turns the viscous pass on (the w lane of Debunne's rows).
+        if let (ModelShape::DebunneMeshfree(s), Some(m)) = (&mut model, &node_material) {
+            s.viscous |= m.iter().any(|row| row[3] > 0.0);
+        }
         ShapeInfo {
-            model: material.build_shape(rest, nb, n, ctx),
+            model,
             node_material,
         }
     }
@@ -371,6 +376,12 @@ impl ShapeInfo {
     /// The per-node material rows, when the tissue has several materials.
     pub fn node_material(&self) -> Option<&[Vec4]> {
         self.node_material.as_deref()
+    }
+
+    /// Whether the tissue has a viscosity (the Debunne model's Kelvin-Voigt dashpot, in
+    /// some region or everywhere): `dt = "auto"` then sizes the step for it too.
+    pub fn viscous(&self) -> bool {
+        matches!(&self.model, ModelShape::DebunneMeshfree(s) if s.viscous)
     }
 
     /// Whether the model keeps a warm-start rotation per node (array `rotation`).

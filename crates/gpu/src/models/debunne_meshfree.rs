@@ -115,6 +115,54 @@ pub const COROTATED_VISCO: KernelSpec = KernelSpec {
     bindings: &COROTATED_VISCO_BINDINGS,
 };
 
+/// The node velocities, for the viscous stress (`mls.wgsl::velocities`).
+const VELOCITIES: (u32, Binding) = (12, Binding::Velocities);
+const VISCOUS_BINDINGS: [(u32, Binding); 7] = [F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6]];
+const VISCOUS_MIXED_BINDINGS: [(u32, Binding); 8] =
+    [F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6], MATERIAL];
+const VISCOUS_COROTATED_BINDINGS: [(u32, Binding); 8] =
+    [F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6], ROTATION];
+const VISCOUS_COROTATED_MIXED_BINDINGS: [(u32, Binding); 9] = [
+    F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6], ROTATION, MATERIAL,
+];
+
+/// `debunne_meshfree.wgsl::deb_viscous`: adds the Kelvin-Voigt viscous stress to the first
+/// pass, after it ([`debunne_meshfree::viscous_stress`]).
+///
+/// [`debunne_meshfree::viscous_stress`]: needlesim_core::models::debunne_meshfree::viscous_stress
+pub const VISCOUS: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_viscous",
+    sources: SOURCES,
+    entry: "deb_viscous",
+    bindings: &VISCOUS_BINDINGS,
+};
+
+/// `debunne_meshfree.wgsl::deb_viscous_mixed`: [`VISCOUS`] with each node's viscosity.
+pub const VISCOUS_MIXED: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_viscous_mixed",
+    sources: SOURCES,
+    entry: "deb_viscous_mixed",
+    bindings: &VISCOUS_MIXED_BINDINGS,
+};
+
+/// `debunne_meshfree.wgsl::deb_viscous_corotated`: [`VISCOUS`] of `R^T L`, pushed by the
+/// rotation the first pass stored.
+pub const VISCOUS_COROTATED: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_viscous_corotated",
+    sources: SOURCES,
+    entry: "deb_viscous_corotated",
+    bindings: &VISCOUS_COROTATED_BINDINGS,
+};
+
+/// `debunne_meshfree.wgsl::deb_viscous_corotated_mixed`: [`VISCOUS_COROTATED`] with each
+/// node's viscosity.
+pub const VISCOUS_COROTATED_MIXED: KernelSpec = KernelSpec {
+    name: "debunne_meshfree/deb_viscous_corotated_mixed",
+    sources: SOURCES,
+    entry: "deb_viscous_corotated_mixed",
+    bindings: &VISCOUS_COROTATED_MIXED_BINDINGS,
+};
+
 impl GpuModel for DebunneParams {
     const KERNELS: &'static [&'static KernelSpec] = &[
         &LINEAR,
@@ -125,6 +173,10 @@ impl GpuModel for DebunneParams {
         &LINEAR_VISCO,
         &LINEAR_VISCO_MIXED,
         &COROTATED_VISCO,
+        &VISCOUS,
+        &VISCOUS_MIXED,
+        &VISCOUS_COROTATED,
+        &VISCOUS_COROTATED_MIXED,
         &GATHER_FORCE,
     ];
 
@@ -132,6 +184,7 @@ impl GpuModel for DebunneParams {
         params.iterations = self.rotation_iterations;
         write_constants(self.constants(), params);
         write_prony(&self.viscoelastic, params);
+        params.viscosity = self.viscosity as f32;
     }
 
     /// Co-rotated, viscoelastic and with several materials is refused before
@@ -147,6 +200,14 @@ impl GpuModel for DebunneParams {
             (false, true, true) => vec![&LINEAR_VISCO_MIXED],
             (true, _, true) => vec![&FRAME, &COROTATED_VISCO],
         };
+        if shape.viscous {
+            v.push(match (shape.corotation.is_some(), mixed) {
+                (false, false) => &VISCOUS,
+                (false, true) => &VISCOUS_MIXED,
+                (true, false) => &VISCOUS_COROTATED,
+                (true, true) => &VISCOUS_COROTATED_MIXED,
+            });
+        }
         v.push(&GATHER_FORCE);
         v
     }
