@@ -316,7 +316,9 @@ impl Simulation {
                         _ => {
                             self.state.region = Some(r);
                             // The cutting force passes to the new region's as the point
-                            // crosses the interface (or within the tear time).
+                            // crosses the interface: by length only, the point cuts both
+                            // tissues while it spans them (the tear time bounds how fast
+                            // a membrane lets go, and there is none here).
                             if sheathed && cutting {
                                 let f = &mut self.state.front;
                                 f.tear = Some(Tear {
@@ -325,7 +327,7 @@ impl Simulation {
                                     at: self.state.cut_depth,
                                     length: self.params.point_length,
                                     started: self.stepper.time(),
-                                    time: self.params.tear_time,
+                                    time: f64::MAX,
                                 });
                             }
                         }
