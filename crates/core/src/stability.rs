@@ -90,38 +90,16 @@ pub fn max_eigenvalue(
 
     let zero = vec![[0.0f64; 3]; free.len()];
     let f0 = forces(backend, &zero)?;
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-    let mut u: Vec<[f64; 3]> = (0..free.len())
-        .map(|_| {
-            std::array::from_fn(|_| {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-        })
-        .collect();
-    let norm = |u: &[[f64; 3]]| u.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
-    let mut lambda = 0.0f64;
-    let mut done = 0;
-    for _ in 0..iterations {
-        let un = norm(&u);
-        if un == 0.0 {
-            break;
-        }
-        u.iter_mut().flatten().for_each(|x| *x /= un);
-        let f = forces(backend, &u)?;
-        // y = M^-1 K u = -(f - f0) / (eps m)
-        let y: Vec<[f64; 3]> = free
+    // y = M^-1 K u = -(f - f0) / (eps m)
+    let (lambda, done) = power_iteration(free.len(), iterations, 0x9e37_79b9_7f4a_7c15, |u| {
+        let f = forces(backend, u)?;
+        Ok(free
             .iter()
             .map(|&i| {
                 std::array::from_fn(|a| -(f[i][a] as f64 - f0[i][a] as f64) / eps * p0[i][3] as f64)
             })
-            .collect();
-        lambda = norm(&y);
-        u = y;
-        done += 1;
-    }
+            .collect())
+    })?;
     backend.write(NodeField::Position, 0, &p0)?;
     backend.write(NodeField::Velocity, 0, &v0)?;
     backend.compute_forces();
@@ -171,37 +149,18 @@ pub fn max_damping_eigenvalue(
         Ok(f)
     };
     let f0 = forces(backend, &vec![[0.0f64; 3]; free.len()])?;
-    let mut seed = 0x2545_f491_4f6c_dd1du64;
-    let mut u: Vec<[f64; 3]> = (0..free.len())
-        .map(|_| {
-            std::array::from_fn(|_| {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            })
-        })
-        .collect();
-    let norm = |u: &[[f64; 3]]| u.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
-    let mut lambda = 0.0f64;
-    for _ in 0..iterations {
-        let un = norm(&u);
-        if un == 0.0 {
-            break;
-        }
-        u.iter_mut().flatten().for_each(|x| *x /= un);
-        let f = forces(backend, &u)?;
-        // y = M^-1 C u = -(f - f0) / (speed m)
-        u = free
+    // y = M^-1 C u = -(f - f0) / (speed m)
+    let (lambda, _) = power_iteration(free.len(), iterations, 0x2545_f491_4f6c_dd1d, |u| {
+        let f = forces(backend, u)?;
+        Ok(free
             .iter()
             .map(|&i| {
                 std::array::from_fn(|a| {
                     -(f[i][a] as f64 - f0[i][a] as f64) / speed * p0[i][3] as f64
                 })
             })
-            .collect();
-        lambda = norm(&u);
-    }
+            .collect())
+    })?;
     backend.write(NodeField::Velocity, 0, &v0)?;
     backend.compute_forces();
     Ok(lambda)
@@ -219,4 +178,38 @@ pub fn damped_critical_dt(k: f64, c: f64) -> f64 {
         // 4 / (c + sqrt(c^2 + 4 k)): the root without cancellation.
         4.0 / (c + (c * c + 4.0 * k).sqrt())
     }
+}
+
+/// Power iteration of the operator `apply` on `len` 3-vectors from a pseudo-random start
+/// drawn with `seed`, `iterations` applications at most: the norm of the last image of a
+/// unit vector (the largest eigenvalue's magnitude) and the applications made.
+fn power_iteration(
+    len: usize,
+    iterations: usize,
+    mut seed: u64,
+    mut apply: impl FnMut(&[[f64; 3]]) -> Result<Vec<[f64; 3]>, SimError>,
+) -> Result<(f64, usize), SimError> {
+    let mut u: Vec<[f64; 3]> = (0..len)
+        .map(|_| {
+            std::array::from_fn(|_| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+        })
+        .collect();
+    let norm = |u: &[[f64; 3]]| u.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    let (mut lambda, mut done) = (0.0f64, 0);
+    for _ in 0..iterations {
+        let un = norm(&u);
+        if un == 0.0 {
+            break;
+        }
+        u.iter_mut().flatten().for_each(|x| *x /= un);
+        u = apply(&u)?;
+        lambda = norm(&u);
+        done += 1;
+    }
+    Ok((lambda, done))
 }
