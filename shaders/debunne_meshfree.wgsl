@@ -1,7 +1,7 @@
 // First pass of the Debunne meshfree model (models/debunne_meshfree.rs), composed after
 // mls.wgsl: the linear stress of J_i, or co-rotated by node i's shape matching rotation.
 // `deb_linear` and `deb_corotated` take the Lame constants and alpha mu from the uniform
-// parameters; their `_mixed` variants take node i's `[lambda, mu, alpha mu, 0]`.
+// parameters; their `_mixed` variants take node i's `[lambda, mu, alpha mu, eta]`.
 // `deb_corotated_mixed` reads the rotation that entry `deb_frame` stored just before, as
 // binding both `shape_vector` and `node_material` would make it use 9 storage buffers (the
 // device is asked for 8).

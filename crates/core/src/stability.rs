@@ -168,10 +168,15 @@ pub fn max_damping_eigenvalue(
 
 /// The largest stable time step with the largest eigenvalues `k` of `M^-1 K` and `c` of
 /// `M^-1 C` (module docs): the root of `dt^2 k + 2 dt c = 4`, `2 / sqrt(k)` without
-/// damping.
+/// damping, `2 / c` without stiffness (`dt c < 2`).
 pub fn damped_critical_dt(k: f64, c: f64) -> f64 {
     if k <= 0.0 {
-        f64::INFINITY
+        // Damping alone: `dt c < 2`.
+        if c > 0.0 {
+            2.0 / c
+        } else {
+            f64::INFINITY
+        }
     } else if c <= 0.0 {
         2.0 / k.sqrt()
     } else {

@@ -270,6 +270,12 @@ impl Tear {
         self.from + (self.to - self.from) * self.progress(front, now)
     }
 
+    /// A crossing into a region without a membrane (the cutting force blended over the
+    /// point's length, no time bound), not a membrane tearing.
+    pub fn is_crossing(&self) -> bool {
+        self.time == f64::MAX
+    }
+
     /// Whether the tear is through.
     pub fn done(&self, front: f64, now: f64) -> bool {
         self.progress(front, now) >= 1.0

@@ -115,7 +115,7 @@ pub const COROTATED_VISCO: KernelSpec = KernelSpec {
     bindings: &COROTATED_VISCO_BINDINGS,
 };
 
-/// The node velocities, for the viscous stress (`mls.wgsl::velocities`).
+/// The node velocities, for the viscous stress (`debunne_meshfree.wgsl::velocities`).
 const VELOCITIES: (u32, Binding) = (12, Binding::Velocities);
 const VISCOUS_BINDINGS: [(u32, Binding); 7] = [F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6]];
 const VISCOUS_MIXED_BINDINGS: [(u32, Binding); 8] =
