@@ -304,18 +304,23 @@ impl Simulation {
                 }
                 // (With the per-length model not while the tip still tears through the
                 // last membrane: it meets the next one with its cutting force.)
-                // A crossing's blend does not hold the next region back: a layer thinner
-                // than the point meets its membrane while the point still spans the last
-                // interface.
-                let tearing = sheathed
-                    && self
-                        .state
-                        .front
-                        .tear
-                        .as_ref()
-                        .is_some_and(|t| !t.is_crossing());
-                if r != current && self.state.denting.is_none() && !tearing {
-                    let fresh = !self.state.punctured.contains(&r);
+                // A crossing's blend holds back only the way it came (the material point
+                // jitters about the interface it is crossing): an intact membrane ahead
+                // still stops the point, as in a layer thinner than the point.
+                let tear = sheathed.then_some(self.state.front.tear).flatten();
+                let tearing = tear.is_some_and(|t| !t.is_crossing());
+                let crossing = tear.is_some_and(|t| t.is_crossing());
+                let fresh = !self.state.punctured.contains(&r);
+                let membrane_ahead = fresh
+                    && matches!(
+                        self.params.regions[r as usize].membrane,
+                        Membrane::Force(_) | Membrane::Impenetrable
+                    );
+                if r != current
+                    && self.state.denting.is_none()
+                    && !tearing
+                    && (!crossing || membrane_ahead)
+                {
                     match self.params.regions[r as usize].membrane {
                         Membrane::Force(_) | Membrane::Impenetrable if fresh => {
                             if cutting {
