@@ -44,19 +44,9 @@ pub fn max_eigenvalue(
     backend: &mut dyn Backend,
     iterations: usize,
 ) -> Result<StabilityEstimate, SimError> {
-    let n = backend.n_active();
-    let mut p0 = vec![[0.0f32; 4]; n];
-    let mut v0 = vec![[0.0f32; 4]; n];
-    backend.read_many(
-        &[
-            (NodeField::Position, (0..n).into()),
-            (NodeField::Velocity, (0..n).into()),
-        ],
-        &mut [&mut p0, &mut v0],
-    )?;
+    let (n, p0, v0, free) = start_state(backend)?;
     // No velocities while probing: spring damping would add to the force differences.
     backend.write(NodeField::Velocity, 0, &vec![[0.0; 4]; n])?;
-    let free: Vec<usize> = (0..n).filter(|&i| p0[i][3] > 0.0).collect();
     let (lo, hi) = p0.iter().fold(
         ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
         |(lo, hi), p| {
@@ -122,17 +112,7 @@ pub fn max_damping_eigenvalue(
     backend: &mut dyn Backend,
     iterations: usize,
 ) -> Result<f64, SimError> {
-    let n = backend.n_active();
-    let mut p0 = vec![[0.0f32; 4]; n];
-    let mut v0 = vec![[0.0f32; 4]; n];
-    backend.read_many(
-        &[
-            (NodeField::Position, (0..n).into()),
-            (NodeField::Velocity, (0..n).into()),
-        ],
-        &mut [&mut p0, &mut v0],
-    )?;
-    let free: Vec<usize> = (0..n).filter(|&i| p0[i][3] > 0.0).collect();
+    let (n, p0, v0, free) = start_state(backend)?;
     // Probe speed: any, the damping force is linear in the velocities.
     let speed = 1e-3f64;
     let forces = |backend: &mut dyn Backend, u: &[[f64; 3]]| -> Result<Vec<Vec4>, SimError> {
@@ -217,4 +197,24 @@ fn power_iteration(
         done += 1;
     }
     Ok((lambda, done))
+}
+
+/// What a probe starts from and restores: the active count, the positions (inverse mass
+/// in w) and velocities of the active nodes, and the free ones (inverse mass above 0).
+#[allow(clippy::type_complexity)]
+fn start_state(
+    backend: &mut dyn Backend,
+) -> Result<(usize, Vec<Vec4>, Vec<Vec4>, Vec<usize>), SimError> {
+    let n = backend.n_active();
+    let mut p0 = vec![[0.0f32; 4]; n];
+    let mut v0 = vec![[0.0f32; 4]; n];
+    backend.read_many(
+        &[
+            (NodeField::Position, (0..n).into()),
+            (NodeField::Velocity, (0..n).into()),
+        ],
+        &mut [&mut p0, &mut v0],
+    )?;
+    let free = (0..n).filter(|&i| p0[i][3] > 0.0).collect();
+    Ok((n, p0, v0, free))
 }
