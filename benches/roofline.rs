@@ -156,7 +156,9 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 ///   point based (Green strain, `F S`) 124, neo-Hookean 79, co-rotated (`R` from its
 ///   quaternion, `R^T F - I`, linear, `R sigma`) 154 plus a shape matching frame; a
 ///   viscoelastic Debunne adds the push of the relaxed stress 54 and 6 + 30 per Prony
-///   term.
+///   term; a Kelvin-Voigt Debunne adds the velocity gradient (27 per live slot: the
+///   weighted velocity difference 6, the rest offset 3, the outer product 18; the moment
+///   product 45) and its stress (`dev sym`, scaled, added to the first pass: 36).
 fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
     const INTEGRATE: f64 = 36.0;
     let frame = 43.0 * k + 51.0 + 49.0 + 130.0 * 2.0;
@@ -172,6 +174,7 @@ fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
             "nh" => mls(79.0),
             // Two Prony terms (benches/common).
             "deb-visco" => mls(34.0) + 54.0 + 6.0 + 30.0 * 2.0,
+            "deb-kv" => mls(34.0) + 27.0 * live + 45.0 + 36.0,
             other => panic!("no flop count for the model `{other}`"),
         }
 }
