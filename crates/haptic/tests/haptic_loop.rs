@@ -47,7 +47,7 @@ fn largest_step(records: &[TickRecord], f: impl Fn(&TickRecord) -> [f64; 3]) -> 
 }
 
 /// The skin of the layered scene gives at 2.8 N and the tissue force falls by about 2 N
-/// over the membrane's tear (30 ms, [`needlesim::needle::sheath::Tear`]; before issue 39
+/// over the membrane's tear (the scene's 4 ms, [`needlesim::needle::sheath::Tear`]; before issue 39
 /// it fell by 1.9 N in one tick). Through the virtual coupling the device feels that drop
 /// spread over the ticks the proxy takes to catch up, never more than 0.5 N in one tick.
 /// The loop runs on the scheduled clock so the machine's load does not change the poses;

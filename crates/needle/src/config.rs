@@ -320,7 +320,7 @@ impl NeedleConfig {
         Ok(())
     }
 
-    /// NeedleParams radius before puncture (m): `contact_radius`, or the needle's radius.
+    /// Contact radius before puncture (m): `contact_radius`, or the needle's radius.
     pub fn contact_radius(&self) -> f64 {
         self.contact_radius.unwrap_or(self.radius)
     }

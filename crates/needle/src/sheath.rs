@@ -44,38 +44,37 @@
 //!   tissue it has not cut; the force builds up over one needle radius of advance
 //!   (stiffness `F_c / a`: the crack-tip process zone is of the size of the tip) and
 //!   unloads elastically when the needle stops or turns back. It never pulls.
-//! - **NeedleParams before puncture** ([`Patch`]): the tip's load on an intact surface goes
+//! - **Contact before puncture** ([`Patch`]): the tip's load on an intact surface goes
 //!   into a contact of radius `R_c` (`contact_radius`, by default the needle's radius; a
 //!   capsule or skin under tension spreads it further). Its compliance is that of a rigid
 //!   flat punch on an elastic half-space (Sneddon 1965, Int J Eng Sci 3:47-57):
 //!   `(1 - nu^2) / (2 R_c E)`. The resolved tissue cannot carry a load that narrow (a
 //!   point load on one node has no converged stiffness: its dent goes as `1 / h`), so the
-//!   load is spread with a smooth weight over the surface nodes within `R_p = max(2 h,
-//!   1.3 R_c)`, which the nodes resolve, and the sheath element in series supplies the
-//!   compliance the patch lacks: the punch's minus the patch load's own half-space
-//!   compliance (Boussinesq), computed for the actual nodes and weights
-//!   ([`patch_compliance`]). The dent at a force then converges with refinement and
-//!   depends on the tissue model only through its far field, to the extent that the
-//!   lattice answers the patch as the continuum does. Measured on the liver scene (1 N):
-//!   with `R_p = 2 h` the co-rotated Debunne lattice is stiffer than the Boussinesq
-//!   estimate by a fixed share of a compliance that grows as `1 / h`, so the dent goes as
-//!   `7.97 mm - 4.7 mm^2 / h` (6.52, 6.97, 7.25 mm at 3.35, 4.71, 6.42 mm spacing), and
-//!   the mass-spring lattice is far softer (15.9 mm). A wider patch resolves it: with
-//!   `3 h` 7.73-7.80 mm, with `4 h` 7.92-7.94 mm across those spacings (punch on a
-//!   half-space 7.97 mm, scikit-fem on the block 7.96 mm, `reference/needle_dent_fem.md`)
-//!   and 7.92 / 8.00 / 9.36 / 9.18 mm for co-rotated Debunne, point based, shape matching
-//!   and mass-spring. It is not the default yet: with `4 h` the wider release after the
-//!   puncture rings the undamped tissue (the friction-free liver's cutting force dips
-//!   6.7% 60 ms later), the first layer of `tests/layers.rs` needs 2 mm more to relax,
-//!   and a GPU run's node events drift up to 15 steps from the CPU's. With `3 h`
-//!   (2026-11-26, `needlesim report --realism --full`): 7.75 / 7.93 / 7.65 / 9.19 /
-//!   14.98 mm for co-rotated Debunne, point based, neo-Hookean, shape matching and
-//!   mass-spring, the friction-free force flat (0.00%), the layered scene's largest buzz
-//!   11.4% instead of 16.8%; but the layered test's first layer reads a 19% steeper
-//!   friction slope (the entry dent still relaxing), and on lavapipe 5 of its 24 node and
-//!   region events come 1 to 6 steps from the CPU's (none with `2 h`). Only the triangles
-//!   facing the needle count (outward normal within 60 degrees of against it): a patch
-//!   that reaches round the edge of a small body must not take its sides in.
+//!   load is spread with a smooth weight over the surface nodes within a patch radius
+//!   `R_p` the nodes resolve, and the sheath element in series supplies the compliance
+//!   the patch lacks: the punch's minus the patch load's own half-space compliance
+//!   (Boussinesq), computed for the actual nodes and weights ([`patch_compliance`]). The
+//!   dent at a force then converges with refinement and depends on the tissue model only
+//!   through its far field, to the extent that the lattice answers the patch as the
+//!   continuum does, which takes a wide enough patch. With `R_p = max(2 h, 1.3 R_c)`
+//!   (until 2026-11-27) the co-rotated Debunne lattice was stiffer than the Boussinesq
+//!   estimate by a fixed share of a compliance that grows as `1 / h`: on the liver scene
+//!   (1 N) the dent went as `7.97 mm - 4.7 mm^2 / h` (6.52, 6.97, 7.25 mm at 3.35, 4.71,
+//!   6.42 mm spacing) and the mass-spring lattice was far softer (15.9 mm). Now `R_p =
+//!   max(2 h, 1.3 R_c, min(4 h, R_f / 2))`, `R_f` the distance to the face's edge (the
+//!   entry patch in `simulation/insertion.rs`): 7.94, 7.92 and 7.75 mm at 0.7, 1 and 1.4
+//!   times the liver's spacing (the coarsest has room for 2.8 spacings only), against a
+//!   punch on a half-space 7.97 mm and scikit-fem on the block 7.96 mm
+//!   (`reference/needle_dent_fem.md`), and 7.92 / 8.00 / 7.87 / 9.36 / 9.18 mm for
+//!   co-rotated Debunne, point based, neo-Hookean, shape matching and mass-spring (dev
+//!   machine, CPU, 2026-11-27). What it costs: the wider release at the puncture moves
+//!   more tissue (the liver's largest buzz 2.33%, at the end of the audit's 20 ms after
+//!   the puncture, where it was 2.08% at a node removal; the layered scene's 7.2% instead
+//!   of 8.8%). With `R_p = 4 h` alone, a block a few spacings wide had its whole entry
+//!   face as the patch, and the layered test block's GPU and CPU runs drifted apart by up
+//!   to 140 steps at node events: `R_f / 2` keeps such a block at two spacings. Only the
+//!   triangles facing the needle count (outward normal within 60 degrees of against it):
+//!   a patch that reaches round the edge of a small body must not take its sides in.
 //! - **Tear** ([`Tear`]): when a membrane gives, its stored load is not dropped in one
 //!   step: the element's cap falls linearly to zero (to the cutting force at an inner
 //!   membrane) as the tip advances `tear_length` into the tissue behind it (by default

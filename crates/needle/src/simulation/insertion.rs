@@ -211,16 +211,23 @@ impl Simulation {
     }
 
     /// The contact patch around the Surface node just added ([`crate::sheath::Patch`]):
-    /// the surface nodes within `R_p = max(2 h, 1.3 R_c)` of
-    /// it at rest, weighted `(1 - (r / R_p)^2)^2` with the Surface node itself, and the
-    /// stiffness of the sub-grid element that makes the patch as compliant as a rigid
-    /// punch of the contact radius `R_c` on a half-space of the touched region's material.
+    /// the surface nodes within `R_p` of it at rest, weighted `(1 - (r / R_p)^2)^2` with
+    /// the Surface node itself, and the stiffness of the sub-grid element that makes the
+    /// patch as compliant as a rigid punch of the contact radius `R_c` on a half-space of
+    /// the touched region's material. `R_p = max(2 h, 1.3 R_c, min(4 h, R_f / 2))`, `R_f`
+    /// the distance to the nearest node off the face the needle presses (a node of a
+    /// surface triangle not facing the needle): four spacings where the face has room for
+    /// them (the dent then converges with the spacing and is nearly the same for every
+    /// model: [`crate::sheath`]); within half the distance to the face's edge, so that the
+    /// half-space compliance the element is sized by still describes the body (on a block
+    /// a few spacings wide the patch would take the whole face, and the layered test
+    /// block's GPU and CPU runs then drifted apart by up to 140 steps at node events);
+    /// never under two spacings, which the lattice needs to carry the load at all.
     fn entry_patch(&self) -> Patch {
         let surface_node = self.state.nodes.last().expect("the Surface node");
         let layer = self.params.regions[surface_node.region as usize];
         let (young, nu) = layer.modulus;
         let rc = layer.contact_radius;
-        let radius = (2.0 * self.spacing).max(1.3 * rc);
         let n_mesh = self.editor.n_mesh() as u32;
         let rest = |v: u32| DVec3::from(self.rest_of(v));
         let centre = rest(surface_node.index);
@@ -235,13 +242,31 @@ impl Simulation {
                 .as_ref()
                 .map_or([1.0, 0.0, 0.0], |n| n.direction()),
         );
+        let facing = |tri: &[u32; 3]| {
+            let [a, b, c] = tri.map(rest);
+            let normal = (b - a).cross(c - a);
+            normal.dot(axis) <= -0.5 * normal.length()
+        };
+        // Distance to the face's edge: the nearest mesh node of a triangle off the face.
+        let edge = self
+            .state
+            .surface
+            .triangles()
+            .iter()
+            .filter(|tri| !facing(tri))
+            .flat_map(|tri| tri.iter())
+            .filter(|&&v| v < n_mesh)
+            .map(|&v| rest(v).distance(centre))
+            .fold(f64::INFINITY, f64::min);
+        let radius = (4.0 * self.spacing)
+            .min(0.5 * edge)
+            .max(2.0 * self.spacing)
+            .max(1.3 * rc);
         let mut cells: Vec<(u32, f64)> = Vec::new();
         for tri in self.state.surface.triangles() {
             let [a, b, c] = tri.map(rest);
-            let normal = (b - a).cross(c - a);
-            let third = normal.length() / 6.0;
-            let facing = normal.dot(axis) <= -0.5 * normal.length();
-            if !facing && !tri.contains(&surface_node.index) {
+            let third = (b - a).cross(c - a).length() / 6.0;
+            if !facing(tri) && !tri.contains(&surface_node.index) {
                 continue;
             }
             for &v in tri {
