@@ -258,9 +258,10 @@ pub const TEAR_SPEED_SHARE: f64 = 0.25;
 /// tissue behind the tip recoil and chatter along the shaft (`tests/layers.rs`'s friction
 /// slope block: the first layer's slope 7.9 N/m instead of 6.5 with 15 ms, the force
 /// dipping to half for the next 2 mm), while the four `paper_insertion_*` scenes (damped
-/// by `physics.damping`, their force audited by `shared/tools/force_audit.py`) read a
-/// largest buzz of 0.8-1.3% with it against 7.1-10.6% with 15 ms, which rings on past
-/// the audit's 20 ms after the puncture.
+/// by `physics.damping`, their force audited as `shared/tools/force_audit.py` does) read
+/// a largest buzz of 1.1-2.0% with it (`needlesim report --realism --full`, before the
+/// run's last 20 ms) against 7.3-11.0% with 15 ms, which rings on past the audit's 20 ms
+/// after the puncture.
 pub fn tear_time(contact_radius: f64, (young, nu): (f64, f64), density: f64) -> Option<f64> {
     let shear = young / (2.0 * (1.0 + nu));
     if !(shear > 0.0 && density > 0.0 && contact_radius > 0.0 && shear.is_finite()) {
