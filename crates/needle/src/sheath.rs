@@ -61,16 +61,17 @@
 //!   estimate by a fixed share of a compliance that grows as `1 / h`: on the liver scene
 //!   (1 N) the dent went as `7.97 mm - 4.7 mm^2 / h` (6.52, 6.97, 7.25 mm at 3.35, 4.71,
 //!   6.42 mm spacing) and the mass-spring lattice was far softer (15.9 mm). Now `R_p =
-//!   max(2 h, 1.3 R_c, min(4 h, R_f / 2))`, `R_f` the distance to the face's edge (the
-//!   entry patch in `simulation/insertion.rs`): 7.94, 7.92 and 7.75 mm at 0.7, 1 and 1.4
-//!   times the liver's spacing (the coarsest has room for 2.8 spacings only), against a
+//!   max(2 h, 1.3 R_c, min(4 h, R_f / 2))`, `R_f` the distance to the nearest mesh node
+//!   off the surface the needle presses (its sides and back; the entry patch in
+//!   `simulation/insertion.rs`): 7.94, 7.92 and 7.75 mm at 0.7, 1 and 1.4 times the
+//!   liver's spacing (the coarsest has room for 3 of its 6.42 mm spacings only), against a
 //!   punch on a half-space 7.97 mm and scikit-fem on the block 7.96 mm
 //!   (`reference/needle_dent_fem.md`), and 7.92 / 8.00 / 7.87 / 9.36 / 9.18 mm for
 //!   co-rotated Debunne, point based, neo-Hookean, shape matching and mass-spring (dev
 //!   machine, CPU, 2026-11-27). What it costs: the wider release at the puncture moves
 //!   more tissue (the liver's largest buzz 2.33%, at the end of the audit's 20 ms after
-//!   the puncture, where it was 2.08% at a node removal; the layered scene's 7.2% instead
-//!   of 8.8%). With `R_p = 4 h` alone, a block a few spacings wide had its whole entry
+//!   the puncture, where it was 2.08% at a node removal; the layered scene's fell, 7.2%
+//!   instead of 8.8%). With `R_p = 4 h` alone, a block a few spacings wide had its whole entry
 //!   face as the patch, and the layered test block's GPU and CPU runs drifted apart by up
 //!   to 140 steps at node events: `R_f / 2` keeps such a block at two spacings. Only the
 //!   triangles facing the needle count (outward normal within 60 degrees of against it):
@@ -249,11 +250,13 @@ pub const TEAR_SPEED_SHARE: f64 = 0.25;
 /// An estimate of a membrane's tear time (s), for the `tear_time` key: the time a crack
 /// running at [`TEAR_SPEED_SHARE`] of the shear-wave speed `c_s = sqrt(G / rho)`, `G = E
 /// / (2 (1 + nu))`, takes to cross the contact radius `contact_radius` that carried the
-/// load, `t = R_c / (0.25 c_s)`; `None` without a positive modulus, density and radius.
+/// load, `t = R_c / (0.25 c_s)`; `None` unless the modulus, density and radius are
+/// positive and the time finite.
 ///
 /// Liver (E 20 kPa, nu 0.45, 1,060 kg/m^3, R_c 2.5 mm): 3.9 ms; the paper's cube (E
-/// 10 kPa, an 18 G needle's radius): 1.4 ms. The shipped scenes set their `tear_time`
-/// from it. It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
+/// 10 kPa, an 18 G needle's radius): 1.4 ms. The paper scenes, `needle_insert_extract`,
+/// the liver and the phantom scenes set their `tear_time` from it (the layered scene
+/// keeps the liver's 4 ms in every layer: its skin would take 1.4 ms and ring harder). It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
 /// elastic tissue without the Kelvin-Voigt viscosity the fast release can make the
 /// tissue behind the tip recoil and chatter along the shaft (`tests/layers.rs`'s friction
 /// slope block: the first layer's slope 7.9 N/m instead of 6.5 with 15 ms, the force
@@ -264,10 +267,8 @@ pub const TEAR_SPEED_SHARE: f64 = 0.25;
 /// after the puncture.
 pub fn tear_time(contact_radius: f64, (young, nu): (f64, f64), density: f64) -> Option<f64> {
     let shear = young / (2.0 * (1.0 + nu));
-    if !(shear > 0.0 && density > 0.0 && contact_radius > 0.0 && shear.is_finite()) {
-        return None;
-    }
-    Some(contact_radius / (TEAR_SPEED_SHARE * (shear / density).sqrt()))
+    let t = contact_radius / (TEAR_SPEED_SHARE * (shear / density).sqrt());
+    (shear > 0.0 && density > 0.0 && contact_radius > 0.0 && t.is_finite() && t > 0.0).then_some(t)
 }
 
 /// A membrane that gave: its element's cap falls linearly from `from` to `to` as the crack
@@ -478,6 +479,8 @@ mod tests {
         assert_eq!(tear_time(0.0025, (20e3, 0.45), 0.0), None);
         assert_eq!(tear_time(0.0, (20e3, 0.45), 1060.0), None);
         assert_eq!(tear_time(0.0025, (f64::NAN, 0.45), 1060.0), None);
+        assert_eq!(tear_time(f64::INFINITY, (20e3, 0.45), 1060.0), None);
+        assert_eq!(tear_time(0.0025, (20e3, 0.45), f64::INFINITY), None);
     }
 
     #[test]

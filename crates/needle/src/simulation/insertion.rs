@@ -215,14 +215,17 @@ impl Simulation {
     /// the Surface node itself, and the stiffness of the sub-grid element that makes the
     /// patch as compliant as a rigid punch of the contact radius `R_c` on a half-space of
     /// the touched region's material. `R_p = max(2 h, 1.3 R_c, min(4 h, R_f / 2))`, `R_f`
-    /// the distance to the nearest node off the face the needle presses (a node of a
-    /// surface triangle not facing the needle): four spacings where the face has room for
-    /// them (the dent then converges with the spacing and is nearly the same for every
-    /// model: [`crate::sheath`]); within half the distance to the face's edge, so that the
-    /// half-space compliance the element is sized by still describes the body (on a block
-    /// a few spacings wide the patch would take the whole face, and the layered test
-    /// block's GPU and CPU runs then drifted apart by up to 140 steps at node events);
-    /// never under two spacings, which the lattice needs to carry the load at all.
+    /// the distance to the nearest mesh node off the surface the needle presses (a node
+    /// of a mesh triangle whose outward normal is not within 60 degrees of against the
+    /// needle: the body's sides and its back, so a slab thinner than `8 h` is limited by
+    /// its thickness, and an entry more than 60 degrees off the face's normal keeps two
+    /// spacings): four spacings where the body has room for them (the dent then
+    /// converges with the spacing and is nearly the same for every model:
+    /// [`crate::sheath`]); within half that distance, so that the half-space compliance
+    /// the element is sized by still describes the body (on a block a few spacings wide
+    /// the patch would take the whole face, and the layered test block's GPU and CPU runs
+    /// then drifted apart by up to 140 steps at node events); never under two spacings,
+    /// which the lattice needs to carry the load at all.
     fn entry_patch(&self) -> Patch {
         let surface_node = self.state.nodes.last().expect("the Surface node");
         let layer = self.params.regions[surface_node.region as usize];
@@ -247,13 +250,16 @@ impl Simulation {
             let normal = (b - a).cross(c - a);
             normal.dot(axis) <= -0.5 * normal.length()
         };
-        // Distance to the face's edge: the nearest mesh node of a triangle off the face.
+        // Room on the face: the nearest mesh node of a mesh triangle that does not face
+        // the needle (a side or the back of the body). The triangles split around needle
+        // nodes are left out: the Surface node sits at a fitted rest position, which can
+        // tip a thin split triangle over.
         let edge = self
             .state
             .surface
             .triangles()
             .iter()
-            .filter(|tri| !facing(tri))
+            .filter(|tri| tri.iter().all(|&v| v < n_mesh) && !facing(tri))
             .flat_map(|tri| tri.iter())
             .filter(|&&v| v < n_mesh)
             .map(|&v| rest(v).distance(centre))
@@ -264,11 +270,11 @@ impl Simulation {
             .max(1.3 * rc);
         let mut cells: Vec<(u32, f64)> = Vec::new();
         for tri in self.state.surface.triangles() {
-            let [a, b, c] = tri.map(rest);
-            let third = (b - a).cross(c - a).length() / 6.0;
             if !facing(tri) && !tri.contains(&surface_node.index) {
                 continue;
             }
+            let [a, b, c] = tri.map(rest);
+            let third = (b - a).cross(c - a).length() / 6.0;
             for &v in tri {
                 if v >= n_mesh && v != surface_node.index {
                     continue;
