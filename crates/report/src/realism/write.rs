@@ -84,7 +84,15 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
         writeln!(csv, "spin,{rev},friction_at_25mm_n,{fr:e}").unwrap();
     }
     std::fs::write(out.join("realism.csv"), csv)?;
-    let colours = [[200, 40, 40], [40, 90, 200], [40, 150, 60], [150, 90, 20]];
+    // One colour per curve (the model study has five; a fifth curve was dropped from the
+    // plot while there were four colours and a zip), reused past the fifth.
+    let colours = [
+        [200, 40, 40],
+        [40, 90, 200],
+        [40, 150, 60],
+        [150, 90, 20],
+        [120, 40, 160],
+    ];
     for (file, title, v) in [
         (
             "realism_spacing.png",
@@ -93,14 +101,14 @@ pub fn write_realism(out: &Path, r: &Realism) -> std::io::Result<()> {
         ),
         (
             "realism_models.png",
-            "liver scene: force against depth, four tissue models",
+            "liver scene: force against depth, five tissue models",
             &r.models,
         ),
     ] {
         let series: Vec<Series> = v
             .iter()
-            .zip(colours)
-            .map(|(d, colour)| Series {
+            .zip(colours.iter().cycle())
+            .map(|(d, &colour)| Series {
                 label: &d.label,
                 colour,
                 points: d.curve.clone(),
