@@ -231,6 +231,15 @@ pub trait Backend: Send {
 /// non-finite value, or the fastest free node (inverse mass > 0) when it is faster than
 /// `max_speed` m/s.
 pub fn check_bounded<B: Backend + ?Sized>(backend: &mut B, max_speed: f64) -> Result<(), SimError> {
+    let (p, v) = read_active_state(backend)?;
+    check_arrays(backend.steps_taken(), &p, &v, max_speed)
+}
+
+/// The positions (inverse mass in w) and velocities of the active nodes, in one
+/// [`Backend::read_many`].
+pub(crate) fn read_active_state<B: Backend + ?Sized>(
+    backend: &mut B,
+) -> Result<(Vec<Vec4>, Vec<Vec4>), SimError> {
     let n = backend.n_active();
     let mut p = vec![[0.0f32; 4]; n];
     let mut v = vec![[0.0f32; 4]; n];
@@ -241,7 +250,7 @@ pub fn check_bounded<B: Backend + ?Sized>(backend: &mut B, max_speed: f64) -> Re
         ],
         &mut [&mut p, &mut v],
     )?;
-    check_arrays(backend.steps_taken(), &p, &v, max_speed)
+    Ok((p, v))
 }
 
 /// [`check_bounded`] on positions and velocities already read back (an output frame) at

@@ -205,16 +205,8 @@ fn power_iteration(
 fn start_state(
     backend: &mut dyn Backend,
 ) -> Result<(usize, Vec<Vec4>, Vec<Vec4>, Vec<usize>), SimError> {
-    let n = backend.n_active();
-    let mut p0 = vec![[0.0f32; 4]; n];
-    let mut v0 = vec![[0.0f32; 4]; n];
-    backend.read_many(
-        &[
-            (NodeField::Position, (0..n).into()),
-            (NodeField::Velocity, (0..n).into()),
-        ],
-        &mut [&mut p0, &mut v0],
-    )?;
+    let (p0, v0) = crate::backend::read_active_state(backend)?;
+    let n = p0.len();
     let free = (0..n).filter(|&i| p0[i][3] > 0.0).collect();
     Ok((n, p0, v0, free))
 }
