@@ -56,6 +56,10 @@
 //! over the tip's membrane element ran 0.1 N apart between two runs whose events differed
 //! by one step, and the middle membrane gave 650 steps apart; without, the runs keep the
 //! same events at every step. The refreshed Tip node itself is placed in equilibrium.
+//! The Tip node taken off for good (the needle pulled back behind the crack front) is
+//! handed over like a Shaft node: it happens once per withdrawal, and without it the
+//! Shaft node behind it jerked back at 52 mm/s and the needle force rose 19 mN within
+//! 1 ms (`liver_insertion.toml`, first removal on the way out, CPU, 2026-11-27).
 //!
 //! Measured with `needlesim run` and `force_audit.py` (CPU, dev machine, 2026-11-26),
 //! before and after: `layered_liver_biopsy.toml` 6 jumps to 1, largest buzz 16.8% to
@@ -82,6 +86,14 @@ use serde::{Deserialize, Serialize};
 /// docs).
 pub const HANDOVER_TIME: f64 = 0.04;
 
+/// The share left `elapsed` seconds into a handover lasting `duration`: `1 - S(s)`, `S(s) =
+/// s^2 (3 - 2 s)`, `s = elapsed / duration` clamped to `[0, 1]` (1 at the event, 0 once
+/// done, continuous with a continuous rate).
+pub fn fade(elapsed: f64, duration: f64) -> f64 {
+    let s = (elapsed / duration).clamp(0.0, 1.0);
+    1.0 - s * s * (3.0 - 2.0 * s)
+}
+
 /// The part of the elastic forces node edits changed that is still being handed over.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Handover {
@@ -98,8 +110,7 @@ pub struct Handover {
 impl Handover {
     /// The share of `r_j` still applied at time `now` (1 at the event, 0 once done).
     pub fn weight(&self, now: f64) -> f64 {
-        let s = ((now - self.started) / self.duration).clamp(0.0, 1.0);
-        1.0 - s * s * (3.0 - 2.0 * s)
+        fade(now - self.started, self.duration)
     }
 
     /// Whether nothing is left to hand over at time `now`.

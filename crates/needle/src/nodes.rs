@@ -63,6 +63,20 @@ pub struct NeedleNode {
     /// its friction is that region's.
     #[serde(default)]
     pub region: u16,
+    /// Friction above the node's Coulomb cap that an edit gave it (per-length model), N:
+    /// the load the shaft's field assigns a node can exceed what its own tissue holds (a
+    /// node of a softer layer added next to a gripping one). The cap keeps it at the edit
+    /// and lets it go over [`crate::handover::HANDOVER_TIME`] from `carried_at` instead
+    /// of clipping it in one step ([`crate::sheath`], node events).
+    #[serde(default)]
+    pub carried: f64,
+    /// Simulated time `carried` was set, s.
+    #[serde(default)]
+    pub carried_at: f64,
+    /// The node's loads were reassigned by an edit this step; its `carried` is measured at
+    /// its next friction step.
+    #[serde(default)]
+    pub reassigned: bool,
 }
 
 fn one() -> f64 {

@@ -87,7 +87,14 @@
 //! edit each surviving node keeps its force per length while a new one takes the value
 //! interpolated at its place, corrected so that the total does not change
 //! ([`reassign`]); the cutting element and the patch are carried by whatever node is the
-//! front. The needle force is therefore continuous across every event. What an edit
+//! front. A node's Coulomb cap is its own tissue's, so the load the field gives it can
+//! exceed it (a node of a softer layer taking a share of the load a gripping one
+//! carried): what is above the cap at the edit is let go over
+//! [`crate::handover::HANDOVER_TIME`] with the handover's fade, not clipped in one step
+//! (`NeedleNode::carried`; measured on `layered_liver_biopsy.toml`, CPU, 2026-11-27: a
+//! fat node added behind the skin took 56 mN against a cap of 17 mN and the needle force
+//! fell 43 mN in one step, the scene's one jump; with the fade, none). The needle force
+//! is therefore continuous across every event. What an edit
 //! changes in the tissue's own elastic forces (the neighbour rows it rewrites or puts
 //! back) is handed over in time by [`crate::handover`].
 
@@ -254,9 +261,11 @@ pub const TEAR_SPEED_SHARE: f64 = 0.25;
 /// positive and the time finite.
 ///
 /// Liver (E 20 kPa, nu 0.45, 1,060 kg/m^3, R_c 2.5 mm): 3.9 ms; the paper's cube (E
-/// 10 kPa, an 18 G needle's radius): 1.4 ms. The paper scenes, `needle_insert_extract`,
-/// the liver and the phantom scenes set their `tear_time` from it (the layered scene
-/// keeps the liver's 4 ms in every layer: its skin would take 1.4 ms and ring harder). It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
+/// 10 kPa, an 18 G needle's radius): 1.4 ms. The paper scenes, `needle_insert_extract`
+/// and the phantom scene set their `tear_time` from it; the layered scene keeps 4 ms in
+/// every layer (its skin would take 1.4 ms and ring harder); the liver scenes take a
+/// third of the wave speed, 2.9 ms (with 3.9 ms the drop at the puncture still read
+/// 2.33% of buzz 20 ms after it, where the audit stops exempting it: their comment). It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
 /// elastic tissue without the Kelvin-Voigt viscosity the fast release can make the
 /// tissue behind the tip recoil and chatter along the shaft (`tests/layers.rs`'s friction
 /// slope block: the first layer's slope 7.9 N/m instead of 6.5 with 15 ms, the force

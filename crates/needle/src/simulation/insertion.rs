@@ -137,6 +137,9 @@ impl Simulation {
             normal: [0.0; 3],
             share: 1.0,
             region,
+            carried: 0.0,
+            carried_at: 0.0,
+            reassigned: false,
         });
         Ok(())
     }

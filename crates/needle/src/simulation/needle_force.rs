@@ -23,6 +23,7 @@ use crate::config::Membrane;
 use crate::friction::{
     paper_dynamic_friction, paper_next_state, split, FrictionModel, FrictionState,
 };
+use crate::handover::{fade, HANDOVER_TIME};
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NodeRole};
 use crate::sheath::{front_step, punch_compliance, sheath_step, SheathStep, Tear};
@@ -530,6 +531,14 @@ impl Simulation {
             let share = node.share;
             let cap = mu * (layer.grip * c.grip[k] * l + share * normal.length())
                 + pl.viscous * l * (v - u).abs();
+            // What an edit gave the node above its own cap is let go over the handover
+            // time, not clipped in one step (`NeedleNode::carried`).
+            let now = self.stepper.time();
+            let (carried, carried_at) = match node.reassigned {
+                true => ((node.axial.hypot(node.circumferential) - cap).max(0.0), now),
+                false => (node.carried, node.carried_at),
+            };
+            let cap = cap + carried * fade(now - carried_at, HANDOVER_TIME);
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
             let mut other = 0.0;
@@ -557,6 +566,9 @@ impl Simulation {
             let (elastic, phi, slips) = (out.elastic, out.force, out.slips);
             let on_node = phi[0] + other;
             let n = &mut self.state.nodes[k];
+            n.carried = carried;
+            n.carried_at = carried_at;
+            n.reassigned = false;
             n.axial = elastic[0];
             n.circumferential = elastic[1];
             n.slide = dt * (out.velocity + u);

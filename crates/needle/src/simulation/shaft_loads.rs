@@ -74,6 +74,7 @@ impl Simulation {
         for (k, (n, f)) in self.state.nodes.iter_mut().zip(loads).enumerate() {
             n.axial = f[0];
             n.circumferential = f[1];
+            n.reassigned = true;
             if k >= self.low_water {
                 n.normal = [f[2], f[3], f[4]];
             }
