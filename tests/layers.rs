@@ -614,8 +614,10 @@ fn the_friction_slope_changes_at_each_layer_as_its_friction_per_length() {
 /// (`NeedleNode::carried`). From the first grip change on, no step changes the axial
 /// force by more than 3% of the local force (the mean |force| over 50 ms, at least a
 /// tenth of the largest, as `shared/tools/force_audit.py` counts; it counts a jump at 5%).
-/// Measured (CPU, 2026-11-27): 1.96% with the fade, at a node event inside `middle`;
-/// 11.8% without it, at the first `deep` node (and 4.1% where the grip rises).
+/// Measured (CPU, 2026-11-27): 1.95% with the fade, at a node event inside `middle`;
+/// 11.8% without it, at the first `deep` node (and 4.1% where the grip rises). The
+/// excess goes: the slope in `deep` is its own `mu q` (measured 6.10 N/m; 9.38 with an
+/// excess that never fades).
 #[test]
 fn node_additions_where_the_grip_falls_leave_the_force_continuous() {
     let mut sim = cpu_sim(&scene(&slope_scene(1e5, 2e-4, [20.0, 200.0, 20.0])));
@@ -656,6 +658,20 @@ fn node_additions_where_the_grip_falls_leave_the_force_continuous() {
         "a step of {:.2}% at {at} m",
         100.0 * worst.0
     );
+    // And the excess does fade: the slope in `deep` (from 1 mm past its interface,
+    // h / 4 past the hysteresis, to 50 mm) is its own friction per length, 6 N/m, within
+    // 10%, not the 60 N/m of `middle` it came from.
+    let points: Vec<(f64, f64)> = h
+        .iter()
+        .filter(|s| s.state == PunctureState::Inside)
+        .filter_map(|s| {
+            let d = s.tissue_depth.filter(|d| *d > 0.027 && *d < 0.05)?;
+            Some((d, s.force.axial))
+        })
+        .collect();
+    let deep = slope(&points);
+    eprintln!("deep slope {deep:.2} N/m (mu q = 6)");
+    assert!((deep / 6.0 - 1.0).abs() < 0.1, "deep slope {deep} N/m");
 }
 
 /// A region bounded by a closed surface file: the octahedron `|x| + |y| + |z| < 1`,

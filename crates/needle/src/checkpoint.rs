@@ -33,7 +33,7 @@ use thiserror::Error;
 /// First bytes of a checkpoint file.
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
 /// Format version this build writes and reads. Raised whenever the payload changes.
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
 const HEADER: usize = MAGIC.len() + 4 + 8 + 4;
 
 /// Why a checkpoint cannot be written, read or restored.

@@ -92,8 +92,12 @@
 //! carried): what is above the cap at the edit is let go over
 //! [`crate::handover::HANDOVER_TIME`] with the handover's fade, not clipped in one step
 //! (`NeedleNode::carried`; measured on `layered_liver_biopsy.toml`, CPU, 2026-11-27: a
-//! fat node added behind the skin took 56 mN against a cap of 17 mN and the needle force
-//! fell 43 mN in one step, the scene's one jump; with the fade, none). The needle force
+//! fat node added behind the skin took 56 mN against a cap of 17 mN, so 39 mN were
+//! clipped at once, and with the node behind it, whose length the new one took, the
+//! needle force fell 43 mN in one step, the scene's one jump; with the fade, none). The
+//! excess is measured once after the edit and restarted only when a later edit leaves
+//! more than what is left of it (the Tip refreshes of a fast needle, every few steps,
+//! would otherwise keep it from fading). The needle force
 //! is therefore continuous across every event. What an edit
 //! changes in the tissue's own elastic forces (the neighbour rows it rewrites or puts
 //! back) is handed over in time by [`crate::handover`].
@@ -249,8 +253,8 @@ pub fn front_step(force: f64, increment: f64, cap: f64) -> f64 {
 /// A dynamic crack in an elastic solid runs below the Rayleigh wave speed, about 0.95
 /// `c_s` at nu near 0.5 (L. B. Freund, Dynamic Fracture Mechanics, Cambridge 1990). The
 /// share is our choice, not a measurement: a quarter gives the liver's 2.5 mm contact
-/// 3.9 ms, near the 4 ms the liver scene was tuned to by its needle force (the scene's
-/// comment), and carries that choice to other materials and contacts through what sets
+/// 3.9 ms, near the 4 ms the liver scene was tuned to by its needle force until
+/// 2026-11-27 (it takes a third since: [`tear_time`]), and carries that choice to other materials and contacts through what sets
 /// the time: the wave speed and the width of the loaded surface.
 pub const TEAR_SPEED_SHARE: f64 = 0.25;
 
@@ -264,8 +268,8 @@ pub const TEAR_SPEED_SHARE: f64 = 0.25;
 /// 10 kPa, an 18 G needle's radius): 1.4 ms. The paper scenes, `needle_insert_extract`
 /// and the phantom scene set their `tear_time` from it; the layered scene keeps 4 ms in
 /// every layer (its skin would take 1.4 ms and ring harder); the liver scenes take a
-/// third of the wave speed, 2.9 ms (with 3.9 ms the drop at the puncture still read
-/// 2.33% of buzz 20 ms after it, where the audit stops exempting it: their comment). It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
+/// third of the wave speed, 2.9 ms (with 4 ms the drop at the puncture still read 2.33%
+/// of buzz 20 ms after it, where the audit stops exempting it: their comment). It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
 /// elastic tissue without the Kelvin-Voigt viscosity the fast release can make the
 /// tissue behind the tip recoil and chatter along the shaft (`tests/layers.rs`'s friction
 /// slope block: the first layer's slope 7.9 N/m instead of 6.5 with 15 ms, the force

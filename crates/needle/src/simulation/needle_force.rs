@@ -496,6 +496,9 @@ impl Simulation {
             if self.pinned(&node) {
                 *total += fe;
                 self.state.pinned_axial = -fe.dot(t);
+                // Held in place, the node carries no sheath load to let go of.
+                let n = &mut self.state.nodes[k];
+                (n.reassigned, n.carried) = (false, 0.0);
                 continue;
             }
             let (axial, normal) = split(fe.to_array(), t.to_array());
@@ -532,10 +535,23 @@ impl Simulation {
             let cap = mu * (layer.grip * c.grip[k] * l + share * normal.length())
                 + pl.viscous * l * (v - u).abs();
             // What an edit gave the node above its own cap is let go over the handover
-            // time, not clipped in one step (`NeedleNode::carried`).
+            // time, not clipped in one step (`NeedleNode::carried`): measured on the
+            // load the edit assigned (the sheath's elastic force after `reassign`; the
+            // strain of the node's placement is the sheath's to take or slip on, as any
+            // motion), and restarted only when that is more than what is left of an
+            // earlier excess, so that the edits every few steps of a fast needle (Tip
+            // refreshes) do not keep a fading excess alive.
             let now = self.stepper.time();
+            let increment = -stiffness * untaken;
+            let left = node.carried * fade(now - node.carried_at, HANDOVER_TIME);
             let (carried, carried_at) = match node.reassigned {
-                true => ((node.axial.hypot(node.circumferential) - cap).max(0.0), now),
+                true => {
+                    let load = node.axial.hypot(node.circumferential);
+                    match load - cap > left {
+                        true => (load - cap, now),
+                        false => (node.carried, node.carried_at),
+                    }
+                }
                 false => (node.carried, node.carried_at),
             };
             let cap = cap + carried * fade(now - carried_at, HANDOVER_TIME);
@@ -554,7 +570,7 @@ impl Simulation {
             let damping = params.damping_factor as f64;
             let out = sheath_step(&SheathStep {
                 elastic: [node.axial, node.circumferential],
-                increment: [-stiffness * untaken, 0.0],
+                increment: [increment, 0.0],
                 spin: a * droll / dt,
                 stiffness_dt: stiffness * dt,
                 viscous: layer.shear_viscosity * l,
