@@ -50,8 +50,9 @@
 //! Which edits: the steps that add or remove a Surface, Shaft or Exit node (one event per
 //! node spacing of travel), and the Tip node's last removal on the way out (below). A
 //! step that only refreshes the Tip node, lifts it to edit the shaft behind it, or drops
-//! one the tissue carried ahead of the tip is not handed over: the Tip node is refreshed every tenth of a spacing, a few steps apart at
-//! speed, and a handover lasting 40 ms would sum the differences of tens of refreshes
+//! one the tissue carried ahead of the tip is not handed over: the Tip node is refreshed
+//! every tenth of a spacing, a few steps apart at speed, and a handover lasting 40 ms
+//! would sum the differences of tens of refreshes
 //! into a standing force on the tissue at the tip. Measured on the layered GPU/CPU test
 //! of `tests/layers.rs` (20 mm/s, a refresh every 4 to 8 steps): with refreshes handed
 //! over the tip's membrane element ran 0.1 N apart between two runs whose events differed
@@ -59,9 +60,9 @@
 //! same events at every step. The refreshed Tip node itself is placed in equilibrium.
 //! The Tip node taken off for good while the needle is pulled back (behind the crack
 //! front; it is put on again only when the needle advances) is handed over like a Shaft
-//! node: it happens once per withdrawal, and without it the
-//! Shaft node behind it jerked back at 52 mm/s and the needle force rose 19 mN within
-//! 1 ms (`liver_insertion.toml`, first removal on the way out, CPU, 2026-11-27).
+//! node: it happens once per withdrawal, and without it the Shaft node behind it jerked
+//! back at 52 mm/s and the needle force rose 19 mN within 1 ms (`liver_insertion.toml`,
+//! first removal on the way out, CPU, 2026-11-27).
 //!
 //! Measured with `needlesim run` and `force_audit.py` (CPU, dev machine, 2026-11-26),
 //! before and after: `layered_liver_biopsy.toml` 6 jumps to 1, largest buzz 16.8% to

@@ -97,10 +97,9 @@
 //! needle force fell 43 mN in one step, the scene's one jump; with the fade, none). The
 //! excess is measured once after the edit and restarted only when a later edit leaves
 //! more than what is left of it (the Tip refreshes of a fast needle, every few steps,
-//! would otherwise keep it from fading). The needle force
-//! is therefore continuous across every event. What an edit
-//! changes in the tissue's own elastic forces (the neighbour rows it rewrites or puts
-//! back) is handed over in time by [`crate::handover`].
+//! would otherwise keep it from fading). The needle force is therefore continuous across
+//! every event. What an edit changes in the tissue's own elastic forces (the neighbour
+//! rows it rewrites or puts back) is handed over in time by [`crate::handover`].
 
 use glam::DVec3;
 
@@ -254,8 +253,9 @@ pub fn front_step(force: f64, increment: f64, cap: f64) -> f64 {
 /// `c_s` at nu near 0.5 (L. B. Freund, Dynamic Fracture Mechanics, Cambridge 1990). The
 /// share is our choice, not a measurement: a quarter gives the liver's 2.5 mm contact
 /// 3.9 ms, near the 4 ms the liver scene was tuned to by its needle force until
-/// 2026-11-27 (it takes a third since: [`tear_time`]), and carries that choice to other materials and contacts through what sets
-/// the time: the wave speed and the width of the loaded surface.
+/// 2026-11-27 (it takes a third since: [`tear_time`]), and carries that choice to other
+/// materials and contacts through what sets the time: the wave speed and the width of
+/// the loaded surface.
 pub const TEAR_SPEED_SHARE: f64 = 0.25;
 
 /// An estimate of a membrane's tear time (s), for the `tear_time` key: the time a crack
@@ -269,9 +269,10 @@ pub const TEAR_SPEED_SHARE: f64 = 0.25;
 /// and the phantom scene set their `tear_time` from it; the layered scene keeps 4 ms in
 /// every layer (its skin would take 1.4 ms and ring harder); the liver scenes take a
 /// third of the wave speed, 2.9 ms (with 4 ms the drop at the puncture still read 2.33%
-/// of buzz 20 ms after it, where the audit stops exempting it: their comment). It is not the default (15 ms), measured (dev machine, CPU, 2026-11-27): in
-/// elastic tissue without the Kelvin-Voigt viscosity the fast release can make the
-/// tissue behind the tip recoil and chatter along the shaft (`tests/layers.rs`'s friction
+/// of buzz 20 ms after it, where the audit stops exempting it: their comment). It is not
+/// the default (15 ms), measured (dev machine, CPU, 2026-11-27): in elastic tissue
+/// without the Kelvin-Voigt viscosity the fast release can make the tissue behind the
+/// tip recoil and chatter along the shaft (`tests/layers.rs`'s friction
 /// slope block: the first layer's slope 7.9 N/m instead of 6.5 with 15 ms, the force
 /// dipping to half for the next 2 mm), while the four `paper_insertion_*` scenes (damped
 /// by `physics.damping`, their force audited as `shared/tools/force_audit.py` does) read

@@ -542,18 +542,11 @@ impl Simulation {
             // earlier excess, so that the edits every few steps of a fast needle (Tip
             // refreshes) do not keep a fading excess alive.
             let now = self.stepper.time();
-            let increment = -stiffness * untaken;
-            let left = node.carried * fade(now - node.carried_at, HANDOVER_TIME);
-            let (carried, carried_at) = match node.reassigned {
-                true => {
-                    let load = node.axial.hypot(node.circumferential);
-                    match load - cap > left {
-                        true => (load - cap, now),
-                        false => (node.carried, node.carried_at),
-                    }
-                }
-                false => (node.carried, node.carried_at),
-            };
+            let (carried, carried_at) = node
+                .reassigned
+                .then(|| node.axial.hypot(node.circumferential) - cap)
+                .filter(|&e| e > node.carried * fade(now - node.carried_at, HANDOVER_TIME))
+                .map_or((node.carried, node.carried_at), |e| (e, now));
             let cap = cap + carried * fade(now - carried_at, HANDOVER_TIME);
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
@@ -570,7 +563,7 @@ impl Simulation {
             let damping = params.damping_factor as f64;
             let out = sheath_step(&SheathStep {
                 elastic: [node.axial, node.circumferential],
-                increment: [increment, 0.0],
+                increment: [-stiffness * untaken, 0.0],
                 spin: a * droll / dt,
                 stiffness_dt: stiffness * dt,
                 viscous: layer.shear_viscosity * l,
