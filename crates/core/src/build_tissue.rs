@@ -1,7 +1,8 @@
 //! Builds a [`Tissue`] from a scene: the node cloud ([`crate::geometry`]), the simulation
 //! arrays (`Tissue::assemble`), then `physics.dt = "auto"`: [`AUTO_DT_SAFETY`] times the
 //! critical time step that [`crate::stability::max_eigenvalue`] estimates on a CPU probe of
-//! the tissue at its initial state.
+//! the tissue at its initial state, and at most half the inverse frequency of a far-field
+//! face's stiffest spring ([`crate::boundary`]).
 
 use crate::cpu::{CpuBackend, Threading};
 use crate::error::SceneError;
@@ -28,9 +29,15 @@ impl Tissue {
     pub fn from_cloud(scene: &Scene, cloud: NodeCloud, extra: usize) -> Result<Tissue, SceneError> {
         let mut tissue = Tissue::assemble(scene, cloud, extra)?;
         if scene.physics.dt == TimeStep::Auto {
-            let dt = auto_dt(&tissue)?;
+            // At most the step the far-field faces' springs take (crate::boundary).
+            let spring = tissue.boundary.far_field_frequency();
+            let mut dt = auto_dt(&tissue)?;
+            if spring > 0.0 {
+                dt = dt.min(0.5 / spring);
+            }
             tissue.step = StepParams::new(dt, &scene.physics);
         }
+        tissue.boundary.check_far_field(tissue.step.dt as f64)?;
         Ok(tissue)
     }
 }

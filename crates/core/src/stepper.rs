@@ -2,7 +2,7 @@
 //! integration, with or without a needle.
 //!
 //! One step: forces (the backend, then whatever a caller adds, such as the needle's
-//! friction), surface loads at `t`, integration, `t += dt`, the held sets projected at the
+//! friction), surface loads at `t`, far-field faces, integration, `t += dt`, the held sets projected at the
 //! new `t`, and every `physics.check_every` steps the divergence guard. Without loads or
 //! prescribed motion the steps between two guards go to the backend as one batch (the GPU
 //! backend queues a batch without waiting).
@@ -72,6 +72,7 @@ impl Stepper {
     /// clock, the held sets' projection and (every `check_every` steps) the guard.
     pub fn finish_step(&mut self, backend: &mut dyn Backend) -> Result<(), SimError> {
         self.boundary.apply_loads(backend, self.time)?;
+        self.boundary.apply_far_field(backend, &self.params)?;
         backend.integrate();
         self.time += self.params.dt as f64;
         self.steps += 1;

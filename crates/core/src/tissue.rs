@@ -143,7 +143,7 @@ impl Tissue {
                 ),
             ));
         }
-        let (boundary, fixed) = build_boundary(scene, &cloud, &masses)?;
+        let (boundary, fixed) = build_boundary(scene, &cloud, &masses, &regions)?;
         let n_fixed = fixed.iter().filter(|&&f| f).count();
         let frame = PositionFrame::for_body(&cloud.positions);
         let local = |p: [f64; 3], w: f32| {
@@ -295,14 +295,86 @@ fn check_live_neighbours(
     })
 }
 
+/// Each node's outward area vector over the surface triangles whose three corners are
+/// all in `nodes` (zero off them): the surface a load or a far-field face covers.
+fn covered_area_vectors(cloud: &NodeCloud, nodes: &[u32]) -> Vec<[f64; 3]> {
+    let mut member = vec![false; cloud.positions.len()];
+    nodes.iter().for_each(|&i| member[i as usize] = true);
+    let covered: Vec<[u32; 3]> = cloud
+        .triangles
+        .iter()
+        .filter(|t| t.iter().all(|&v| member[v as usize]))
+        .copied()
+        .collect();
+    crate::geometry::vertex_area_vectors(&cloud.positions, &covered)
+}
+
+/// The surface nodes of a far-field face (the triangles whose corners are all in `nodes`)
+/// and their springs and dashpots ([`crate::boundary`]), from each node's region. `key` is
+/// the table's `far_field` key for errors.
+fn far_field_face(
+    scene: &Scene,
+    cloud: &NodeCloud,
+    regions: &Regions,
+    nodes: &[u32],
+    distance: f64,
+    key: String,
+) -> Result<(Vec<u32>, crate::boundary::FarField), SceneError> {
+    let area = covered_area_vectors(cloud, nodes);
+    let on_face: Vec<u32> = nodes
+        .iter()
+        .copied()
+        .filter(|&i| area[i as usize] != [0.0; 3])
+        .collect();
+    if on_face.is_empty() {
+        return Err(SceneError::invalid(
+            key,
+            "covers no surface triangle (a far-field face is the triangles whose three \
+             corners the set selects)",
+        ));
+    }
+    let mut far = crate::boundary::FarField {
+        key: format!("{key}.distance"),
+        normals: Vec::with_capacity(on_face.len()),
+        dashpots: Vec::with_capacity(on_face.len()),
+        springs: Vec::with_capacity(on_face.len()),
+    };
+    for &i in &on_face {
+        let a = glam::DVec3::from(area[i as usize]);
+        let r = regions.of_node[i as usize] as usize;
+        let moduli = regions.materials[r]
+            .elastic_moduli(cloud.spacing, scene.tissue.neighbours)
+            .map_err(|e| {
+                SceneError::invalid(
+                    key.clone(),
+                    format!(
+                        "needs the Young's modulus of region `{}` at its nodes: {e}",
+                        regions.names[r]
+                    ),
+                )
+            })?;
+        let (dashpots, springs) = crate::boundary::far_field_coefficients(
+            a.length(),
+            moduli,
+            regions.densities[r],
+            distance,
+        );
+        far.normals.push(a.normalize().to_array());
+        far.dashpots.push(dashpots);
+        far.springs.push(springs);
+    }
+    Ok((on_face, far))
+}
+
 /// The held sets and loads of a scene, and which nodes get inverse mass 0 (held in all
 /// components). Errors name the table: a set that selects no node, a prescribed
-/// displacement on a node that `[[fixed]]` holds in all components, a load on no surface
-/// node.
+/// displacement on a node that `[[fixed]]` holds in all components, a load or a far-field
+/// face on no surface triangle.
 fn build_boundary(
     scene: &Scene,
     cloud: &NodeCloud,
     masses: &[f64],
+    regions: &Regions,
 ) -> Result<(Boundary, Vec<bool>), SceneError> {
     let rest = &cloud.positions;
     let n = rest.len();
@@ -322,13 +394,25 @@ fn build_boundary(
         if nodes.is_empty() {
             return Err(empty(format!("fixed[{s}]")));
         }
-        if f.components.all() {
-            nodes.iter().for_each(|&i| fixed[i as usize] = true);
-        }
         for &i in &nodes {
             for a in (0..3).filter(|&a| f.components.0[a]) {
                 held_by[i as usize][a].get_or_insert(s);
             }
+        }
+        if let Some(spec) = &f.far_field {
+            let key = format!("fixed[{s}].far_field");
+            let (face, far) = far_field_face(scene, cloud, regions, &nodes, spec.distance, key)?;
+            boundary.held.push(HeldSet::far_field(
+                names[s].1.clone(),
+                face,
+                far,
+                rest,
+                masses,
+            ));
+            continue;
+        }
+        if f.components.all() {
+            nodes.iter().for_each(|&i| fixed[i as usize] = true);
         }
         boundary.held.push(HeldSet::new(
             names[s].1.clone(),
@@ -396,18 +480,7 @@ fn build_boundary(
     }
     for (s, l) in scene.load.iter().enumerate() {
         // The loaded surface: the triangles whose corners are all in the set.
-        let mut member = vec![false; n];
-        l.nodes
-            .select(rest)
-            .into_iter()
-            .for_each(|i| member[i as usize] = true);
-        let loaded: Vec<[u32; 3]> = cloud
-            .triangles
-            .iter()
-            .filter(|t| t.iter().all(|&v| member[v as usize]))
-            .copied()
-            .collect();
-        let area = crate::geometry::vertex_area_vectors(rest, &loaded);
+        let area = covered_area_vectors(cloud, &l.nodes.select(rest));
         let nodes: Vec<u32> = (0..n as u32)
             .filter(|&i| area[i as usize] != [0.0; 3])
             .collect();

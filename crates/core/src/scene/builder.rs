@@ -493,7 +493,15 @@ impl FixedSelection {
             nodes,
             components: Components::default(),
             name: None,
+            far_field: None,
         }
+    }
+
+    /// `far_field = { distance }`: a cut face supported by the tissue beyond it, `distance`
+    /// m from the loads inside ([`crate::boundary`]).
+    pub fn with_far_field(mut self, distance: f64) -> Self {
+        self.far_field = Some(crate::scene::FarFieldSpec { distance });
+        self
     }
 
     /// `components`: hold only these.

@@ -49,7 +49,8 @@ pub use physics::{Initial, Physics, TimeStep, AUTO_DT_SAFETY};
 pub use region::{RegionGeometry, RegionSpec, RegionSurface};
 pub use run::{RunSettings, DEFAULT_MAX_MEMORY_GIB, MAX_RUN_STEPS};
 pub use selection::{
-    Axis, Components, FixedSelection, LoadSpec, Motion, NodeSet, Prescribed, SurfaceLoad,
+    Axis, Components, FarFieldSpec, FixedSelection, LoadSpec, Motion, NodeSet, Prescribed,
+    SurfaceLoad,
 };
 pub(crate) use tissue::default_density;
 pub use tissue::{
@@ -301,7 +302,7 @@ impl Scene {
         self.material.validate("material")?;
         self.physics.validate()?;
         for (i, f) in self.fixed.iter().enumerate() {
-            f.nodes.validate(&format!("fixed[{i}]"))?;
+            f.validate(&format!("fixed[{i}]"))?;
         }
         for (i, p) in self.prescribed.iter().enumerate() {
             p.validate(&format!("prescribed[{i}]"))?;

@@ -285,7 +285,9 @@ impl<'de> Deserialize<'de> for Components {
 
 /// `[[fixed]]`: a node set held at its rest position, in every component or (with
 /// `components`) only in some: `components = ["y"]` on a bottom face is a frictionless
-/// floor (roller).
+/// floor (roller). With `far_field = { distance = R }` the set's surface is a cut face
+/// of a body that goes on beyond it: held by springs and dashpots that stand for the
+/// tissue outside instead of rigidly ([`crate::boundary`], "Far-field faces").
 #[derive(Debug, Clone, PartialEq)]
 pub struct FixedSelection {
     /// The nodes.
@@ -294,6 +296,18 @@ pub struct FixedSelection {
     pub components: Components,
     /// Name in the reaction output (default `fixed<i>`).
     pub name: Option<String>,
+    /// A far-field face instead of a rigid hold (default none).
+    pub far_field: Option<FarFieldSpec>,
+}
+
+/// `far_field = { distance = R }` of a `[[fixed]]` table: the set's surface triangles
+/// are a cut face, supported by the tissue beyond it ([`crate::boundary`]).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FarFieldSpec {
+    /// The distance from the loads inside (a needle's path) to the face, m: it sets the
+    /// face's static springs, `4 G / R` normal and `3 G / R` tangential per unit area.
+    pub distance: f64,
 }
 
 #[derive(Deserialize)]
@@ -302,6 +316,7 @@ struct FixedKeys {
     #[serde(default)]
     components: Components,
     name: Option<String>,
+    far_field: Option<FarFieldSpec>,
 }
 
 impl<'de> Deserialize<'de> for FixedSelection {
@@ -311,6 +326,7 @@ impl<'de> Deserialize<'de> for FixedSelection {
             nodes,
             components: k.components,
             name: k.name,
+            far_field: k.far_field,
         })
     }
 }
@@ -319,6 +335,27 @@ impl FixedSelection {
     /// Whether a rest position is in the set's region.
     pub fn contains(&self, p: [f64; 3]) -> bool {
         self.nodes.contains(p)
+    }
+
+    /// Checks the node set and the far-field keys; `key` is `fixed[i]`.
+    pub fn validate(&self, key: &str) -> Result<(), SceneError> {
+        self.nodes.validate(key)?;
+        if let Some(f) = &self.far_field {
+            if !(f.distance.is_finite() && f.distance > 0.0) {
+                return Err(SceneError::invalid(
+                    format!("{key}.far_field.distance"),
+                    format!("must be a finite distance > 0 in m, got {}", f.distance),
+                ));
+            }
+            if !self.components.all() {
+                return Err(SceneError::invalid(
+                    format!("{key}.components"),
+                    "a far_field face is supported in every component (its springs and \
+                     dashpots act normal and tangential to the face); leave `components` out",
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
