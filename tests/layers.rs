@@ -7,7 +7,7 @@ mod common;
 
 use common::{cpu_sim, gpu_sim, same_states_force_difference};
 use needlesim::core::regions::BASE_REGION;
-use needlesim::needle::{PunctureState, Simulation, SimulationError};
+use needlesim::needle::{NeedleSample, PunctureState, Simulation, SimulationError};
 use needlesim::{Backend, CpuBackend, NodeField, Scene, SimError, Threading, Tissue};
 use std::path::Path;
 
@@ -507,8 +507,9 @@ fn every_model_restores_every_array_after_each_cycle_through_the_layers() {
 }
 
 /// The layered needle (co-rotated Debunne, three materials, three membranes) on the GPU
-/// and on the CPU through insertion, hold and extraction: the same puncture state, tip
-/// region and needle node count at every step, and the axial force within 1% of the
+/// and on the CPU through insertion, hold and extraction: the same punctures, the tip in
+/// the same regions (each change within two steps), the same puncture state and needle
+/// node count at every step, and the axial force within 1% of the
 /// largest force at every step (the margin as in `tests/needle.rs`: f32 rounding may move
 /// a node's switch between sticking and slipping by a step).
 #[test]
@@ -524,8 +525,19 @@ fn gpu_and_cpu_agree_on_the_layered_needle() {
         |sim: &Simulation| -> Vec<String> { entries(sim).into_iter().map(|e| e.0).collect() };
     assert_eq!(names(&c), ["outer", "middle", "deep"]);
     assert_eq!(names(&g), names(&c));
-    for (a, b) in hg.iter().zip(hc) {
-        assert_eq!(a.region, b.region, "step {}", a.step);
+    // The tip's region at every step: the same sequence of regions, each change within
+    // two steps on both (a change is a threshold on the tip's material depth, which f32
+    // rounding moves: measured 1.2e-7 m apart on a 9.6 mm depth, one step apart).
+    let changes = |h: &[NeedleSample]| -> Vec<(usize, Option<u16>)> {
+        (1..h.len())
+            .filter(|&i| h[i].region != h[i - 1].region)
+            .map(|i| (i, h[i].region))
+            .collect()
+    };
+    let (cg, cc) = (changes(hg), changes(hc));
+    assert_eq!(cg.len(), cc.len(), "region changes: GPU {cg:?}, CPU {cc:?}");
+    for (a, b) in cg.iter().zip(&cc) {
+        assert!(a.1 == b.1 && a.0.abs_diff(b.0) <= 2, "GPU {a:?}, CPU {b:?}");
     }
     let (scale, per_step) = same_states_force_difference(hg, hc, f64::INFINITY);
     eprintln!("layered: force scale {scale:.3} N; largest difference {per_step:.2e} of it");

@@ -5,7 +5,7 @@ use needlesim::core::scene::{
     DebunneParams, MassSpringParams, ShapeMatchingForces, ShapeMatchingParams,
 };
 use needlesim::gpu::{GpuBackend, GpuError};
-use needlesim::needle::{NeedleSample, Simulation};
+use needlesim::needle::{NeedleSample, PunctureState, Simulation};
 use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, Threading, Tissue};
 
 /// The rotation-invariant force models under test: (label, material).
@@ -101,23 +101,40 @@ pub fn gpu_sim(scene: &Scene) -> Option<Simulation> {
     }
 }
 
-/// Asserts the same puncture state and needle node count at every step of two runs, and
-/// returns the largest |axial force| of `hc` and the largest per-step axial force
-/// difference up to time `until`, relative to that scale.
+/// Asserts the same puncture states and needle node counts in two runs, each change
+/// within two steps of the other run's (a puncture, a node edit and a region change are
+/// thresholds that f32 rounding moves: the layered scene added a node one step apart,
+/// with forces 0.05% apart), and returns the largest |axial force| of `hc` and the
+/// largest per-step axial force difference up to time `until`, relative to that scale.
 pub fn same_states_force_difference(
     hg: &[NeedleSample],
     hc: &[NeedleSample],
     until: f64,
 ) -> (f64, f64) {
+    let changes = |h: &[NeedleSample]| -> Vec<(usize, (PunctureState, usize))> {
+        (0..h.len())
+            .filter(|&i| {
+                i == 0 || (h[i].state, h[i].needle_nodes) != (h[i - 1].state, h[i - 1].needle_nodes)
+            })
+            .map(|i| (i, (h[i].state, h[i].needle_nodes)))
+            .collect()
+    };
+    let (cg, cc) = (changes(hg), changes(hc));
+    assert_eq!(
+        cg.iter().map(|c| c.1).collect::<Vec<_>>(),
+        cc.iter().map(|c| c.1).collect::<Vec<_>>(),
+        "states and node counts"
+    );
+    for (a, b) in cg.iter().zip(&cc) {
+        assert!(
+            a.0.abs_diff(b.0) <= 2,
+            "GPU {a:?} at step {}, CPU {b:?}",
+            hg[a.0].step
+        );
+    }
     let scale = hc.iter().map(|s| s.force.axial.abs()).fold(0.0, f64::max);
     let mut largest = 0.0f64;
     for (a, b) in hg.iter().zip(hc) {
-        assert_eq!(
-            (a.state, a.needle_nodes),
-            (b.state, b.needle_nodes),
-            "step {}",
-            a.step
-        );
         if a.time <= until {
             largest = largest.max((a.force.axial - b.force.axial).abs() / scale);
         }

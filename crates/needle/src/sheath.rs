@@ -43,7 +43,10 @@
 //!   front needle node) with at most the cutting force `F_c` while it advances into
 //!   tissue it has not cut; the force builds up over one needle radius of advance
 //!   (stiffness `F_c / a`: the crack-tip process zone is of the size of the tip) and
-//!   unloads elastically when the needle stops or turns back. It never pulls.
+//!   unloads elastically when the needle stops or turns back. It never pulls. Where its
+//!   force depends on the node's place (those ramps, a dented membrane's punch) it has a
+//!   dashpot of the sheath's loss, its stiffness times `eta / G`, solved implicitly with
+//!   the node ([`front_viscosity`]); at the crack front itself it has none.
 //! - **Contact before puncture** ([`Patch`]): the tip's load on an intact surface goes
 //!   into a contact of radius `R_c` (`contact_radius`, by default the needle's radius; a
 //!   capsule or skin under tension spreads it further). Its compliance is that of a rigid
@@ -175,6 +178,10 @@ pub struct SheathStep {
     /// The needle's other axial forces on the node this step (the tip's element, the
     /// contact patch), N.
     pub other: f64,
+    /// A dashpot beside `other`, N s/m: the tip's element resists the node's motion
+    /// relative to the needle while it pushes, and never pulls (`other - c w >= 0`;
+    /// [`front_viscosity`]). 0 for a node without one.
+    pub other_viscous: f64,
     /// Coulomb cap, N.
     pub cap: f64,
 }
@@ -191,6 +198,9 @@ pub struct SheathOut {
     /// The node's axial velocity relative to the needle at the end of the step, m/s
     /// (what the integrator gives it under `force`).
     pub velocity: f64,
+    /// The other forces' push on the node with their dashpot, `other - c w`, N (0 where
+    /// the dashpot would pull: the tip's element lets go).
+    pub other: f64,
 }
 
 /// The Kelvin-Voigt sheath (spring `K`, dashpot `c`, on both the axial and the
@@ -210,10 +220,24 @@ pub struct SheathOut {
 /// step, which counted the axial velocity twice and turned the friction of a spinning
 /// needle towards the axis (an axial share of 0.87 where Coulomb friction on the helix
 /// gives 0.78).
+///
+/// The push `other` (the tip's element) may come with a dashpot `other_viscous` on the
+/// same relative velocity, taken implicitly too; where it would pull (the node running
+/// away from the tip faster than the push can follow) the element lets go for the step:
+/// push and dashpot both 0.
 pub fn sheath_step(s: &SheathStep) -> SheathOut {
+    let out = sheath_step_with(s, s.other, s.other_viscous);
+    if out.other >= 0.0 || s.other_viscous == 0.0 {
+        return out;
+    }
+    sheath_step_with(s, 0.0, 0.0)
+}
+
+/// [`sheath_step`] with the push `other` and its dashpot `c`.
+fn sheath_step_with(s: &SheathStep, other: f64, c: f64) -> SheathOut {
     let e0 = [s.elastic[0] + s.increment[0], s.elastic[1] + s.increment[1]];
     let resist = s.viscous + s.stiffness_dt;
-    let w = (s.free + s.beta * (s.other + e0[0])) / (1.0 + s.beta * resist);
+    let w = (s.free + s.beta * (other + e0[0])) / (1.0 + s.beta * (resist + c));
     let held = [e0[0] - resist * w, e0[1] + resist * s.spin];
     let (force, slips) = friction_step(held, [0.0, 0.0], s.cap);
     if !slips {
@@ -222,8 +246,10 @@ pub fn sheath_step(s: &SheathStep) -> SheathOut {
             force,
             slips,
             velocity: w,
+            other: other - c * w,
         };
     }
+    let velocity = (s.free + s.beta * (other + force[0])) / (1.0 + s.beta * c);
     // K x_new + c (x_new - x_0) / dt = F, in force units e = K x.
     let r = match s.stiffness_dt > 0.0 {
         true => s.viscous / s.stiffness_dt,
@@ -236,7 +262,33 @@ pub fn sheath_step(s: &SheathStep) -> SheathOut {
         ],
         force,
         slips,
-        velocity: s.free + s.beta * (s.other + force[0]),
+        velocity,
+        other: other - c * velocity,
+    }
+}
+
+/// The dashpot of the tip's element (N s/m): its stiffness `k` (N/m; the cutting
+/// element's `F_c / a`, a dented membrane's punch) times the tissue's own relaxation time
+/// in the sheath, `eta / G` (the sheath's viscous over its elastic coefficient per unit
+/// length, [`shaft_viscosity`] over [`shaft_stiffness`]: the same logarithmic factor
+/// cancels). The element is tissue at the crack tip, so it has the sheath's loss.
+///
+/// Why: the front node is a lump of the tissue ahead (a 3 mm node of fat weighs 25 mg)
+/// on the element's ramps (0.3-0.5 N over one needle radius, 500-800 N/m), a mode near
+/// 1 kHz that nothing else damped while the node slips (the sheath's own dashpot is capped
+/// off then). It shows where the tissue ahead of the tip moves with the needle and springs
+/// forward. Measured with `needlesim run` and `force_audit.py` (CPU, 2026-11-27), without
+/// and with this dashpot: the layered scene's largest buzz 6.29% and 6.12%; a variant of
+/// it twice as wide (sides 30 mm from the needle, first 1.6 s) 16 and 6 jumps; with
+/// far-field sides at 15 mm ([`needlesim_core::boundary`]) 5 and 3 jumps, 13.6% and 9.8%
+/// of buzz; the liver 1.77% and 1.76%; the paper scenes, the phantom and
+/// `needle_insert_extract` unchanged. A dashpot on the node's whole motion relative to the
+/// needle (the crack front included) acted on the insertion speed itself: a viscous
+/// cutting force that stepped by 15 mN (5.7%) at the paper scenes' first Shaft node.
+pub fn front_viscosity(stiffness: f64, sheath_viscous: f64, sheath_stiffness: f64) -> f64 {
+    match sheath_stiffness > 0.0 && stiffness.is_finite() {
+        true => stiffness * sheath_viscous / sheath_stiffness,
+        false => 0.0,
     }
 }
 
@@ -538,6 +590,7 @@ mod tests {
                 free: 1.0,
                 beta: 1e-3,
                 other: 0.0,
+                other_viscous: 0.0,
                 cap,
             })
         };
@@ -562,6 +615,44 @@ mod tests {
     }
 
     #[test]
+    fn the_push_dashpot_is_implicit_and_never_pulls() {
+        let step = |free: f64, other_viscous: f64| {
+            sheath_step(&SheathStep {
+                elastic: [0.0; 2],
+                increment: [0.0; 2],
+                spin: 0.0,
+                stiffness_dt: 1e-3,
+                viscous: 0.0,
+                free,
+                beta: 1.0,
+                other: 0.5,
+                other_viscous,
+                cap: f64::INFINITY,
+            })
+        };
+        // Without a dashpot the push is `other` exactly (bitwise the former step).
+        let plain = step(-1.0, 0.0);
+        assert_eq!(plain.other, 0.5);
+        // A node closing on the tip: the dashpot adds to the push, and however stiff it
+        // is, the node is not thrown back (implicit: its relative velocity stays between
+        // the free one and zero).
+        for c in [1.0, 1e3, 1e9] {
+            let o = step(-1.0, c);
+            assert!(o.other > 0.5, "c {c}: {o:?}");
+            assert!((-1.0..=0.0).contains(&o.velocity), "c {c}: {o:?}");
+            let expected = -1.0 + (o.other + o.force[0]);
+            assert!((o.velocity - expected).abs() < 1e-9 * (1.0 + c), "{o:?}");
+        }
+        // A node running away from the tip: the element lets go rather than pull.
+        let o = step(10.0, 1e3);
+        assert_eq!(o.other, 0.0, "{o:?}");
+        assert!(o.velocity > 0.0);
+        // The element's dashpot is its stiffness times the sheath's eta / G.
+        assert!((front_viscosity(600.0, 2.0, 4000.0) - 0.3).abs() < 1e-12);
+        assert_eq!(front_viscosity(600.0, 2.0, 0.0), 0.0);
+    }
+
+    #[test]
     fn spinning_slip_follows_the_helix_at_any_viscosity() {
         // Steady slip at 5 mm/s axially with the shaft's surface turning at 4 mm/s: the
         // axial share of the friction is v / |(v, omega a)|, with or without a dashpot.
@@ -580,6 +671,7 @@ mod tests {
                     free: -v,
                     beta: 0.0,
                     other: 0.0,
+                    other_viscous: 0.0,
                     cap: 1.0,
                 });
                 e = o.elastic;
@@ -617,6 +709,7 @@ mod tests {
                 free: v,
                 beta: dt / m,
                 other: 0.0,
+                other_viscous: 0.0,
                 cap: f64::INFINITY,
             });
             v = o.velocity;
