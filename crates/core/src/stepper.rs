@@ -2,10 +2,10 @@
 //! integration, with or without a needle.
 //!
 //! One step: forces (the backend, then whatever a caller adds, such as the needle's
-//! friction), surface loads at `t`, far-field faces, integration, `t += dt`, the held sets projected at the
-//! new `t`, and every `physics.check_every` steps the divergence guard. Without loads or
-//! prescribed motion the steps between two guards go to the backend as one batch (the GPU
-//! backend queues a batch without waiting).
+//! friction), surface loads at `t`, far-field faces, integration, `t += dt`, the held sets
+//! projected at the new `t`, and every `physics.check_every` steps the divergence guard.
+//! Without loads, prescribed motion or far-field faces the steps between two guards go to
+//! the backend as one batch (the GPU backend queues a batch without waiting).
 
 use crate::backend::{check_arrays, Backend};
 use crate::boundary::{Boundary, Reaction};
@@ -111,7 +111,8 @@ impl Stepper {
         self.boundary.reactions(backend, g)
     }
 
-    /// Whether the stepper must see every step (loads or prescribed motion).
+    /// Whether the stepper must see every step (loads, prescribed motion or far-field
+    /// faces).
     pub fn acts_each_step(&self) -> bool {
         self.boundary.acts_each_step()
     }

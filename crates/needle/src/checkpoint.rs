@@ -32,8 +32,10 @@ use thiserror::Error;
 
 /// First bytes of a checkpoint file.
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
-/// Format version this build writes and reads. Raised whenever the payload changes.
-pub const FORMAT_VERSION: u32 = 7;
+/// Format version this build writes and reads. Raised whenever the payload changes (8:
+/// the scene fingerprint hashes `[[fixed]]` with its `far_field` key, so a version 7
+/// file is refused as a version rather than as another scene).
+pub const FORMAT_VERSION: u32 = 8;
 const HEADER: usize = MAGIC.len() + 4 + 8 + 4;
 
 /// Why a checkpoint cannot be written, read or restored.

@@ -175,13 +175,15 @@ pub struct SheathStep {
     pub free: f64,
     /// How much a force on the node changes that velocity, (m/s)/N: `D dt / m`.
     pub beta: f64,
-    /// The needle's other axial forces on the node this step (the tip's element, the
-    /// contact patch), N.
+    /// The tip's element's axial push on the node this step, N.
     pub other: f64,
     /// A dashpot beside `other`, N s/m: the tip's element resists the node's motion
     /// relative to the needle while it pushes, and never pulls (`other - c w >= 0`;
     /// [`front_viscosity`]). 0 for a node without one.
     pub other_viscous: f64,
+    /// The needle's further axial pushes on the node, without a dashpot (the contact
+    /// patch's share on the Surface node), N.
+    pub patch: f64,
     /// Coulomb cap, N.
     pub cap: f64,
 }
@@ -198,8 +200,8 @@ pub struct SheathOut {
     /// The node's axial velocity relative to the needle at the end of the step, m/s
     /// (what the integrator gives it under `force`).
     pub velocity: f64,
-    /// The other forces' push on the node with their dashpot, `other - c w`, N (0 where
-    /// the dashpot would pull: the tip's element lets go).
+    /// The pushes on the node with the element's dashpot, `other - c w + patch`, N (the
+    /// element's part 0 where its dashpot would pull: it lets go).
     pub other: f64,
 }
 
@@ -227,7 +229,7 @@ pub struct SheathOut {
 /// push and dashpot both 0.
 pub fn sheath_step(s: &SheathStep) -> SheathOut {
     let out = sheath_step_with(s, s.other, s.other_viscous);
-    if out.other >= 0.0 || s.other_viscous == 0.0 {
+    if out.other - s.patch >= 0.0 || s.other_viscous == 0.0 {
         return out;
     }
     sheath_step_with(s, 0.0, 0.0)
@@ -237,6 +239,7 @@ pub fn sheath_step(s: &SheathStep) -> SheathOut {
 fn sheath_step_with(s: &SheathStep, other: f64, c: f64) -> SheathOut {
     let e0 = [s.elastic[0] + s.increment[0], s.elastic[1] + s.increment[1]];
     let resist = s.viscous + s.stiffness_dt;
+    let other = other + s.patch;
     let w = (s.free + s.beta * (other + e0[0])) / (1.0 + s.beta * (resist + c));
     let held = [e0[0] - resist * w, e0[1] + resist * s.spin];
     let (force, slips) = friction_step(held, [0.0, 0.0], s.cap);
@@ -591,6 +594,7 @@ mod tests {
                 beta: 1e-3,
                 other: 0.0,
                 other_viscous: 0.0,
+                patch: 0.0,
                 cap,
             })
         };
@@ -627,6 +631,7 @@ mod tests {
                 beta: 1.0,
                 other: 0.5,
                 other_viscous,
+                patch: 0.0,
                 cap: f64::INFINITY,
             })
         };
@@ -672,6 +677,7 @@ mod tests {
                     beta: 0.0,
                     other: 0.0,
                     other_viscous: 0.0,
+                    patch: 0.0,
                     cap: 1.0,
                 });
                 e = o.elastic;
@@ -710,6 +716,7 @@ mod tests {
                 beta: dt / m,
                 other: 0.0,
                 other_viscous: 0.0,
+                patch: 0.0,
                 cap: f64::INFINITY,
             });
             v = o.velocity;

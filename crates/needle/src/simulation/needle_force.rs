@@ -550,16 +550,16 @@ impl Simulation {
             let cap = cap + carried * fade(now - carried_at, HANDOVER_TIME);
             // The needle's other pushes on the node: the tip's element at the front, the
             // contact patch's share on the Surface node.
-            let (mut other, mut other_viscous) = (0.0, 0.0);
+            let (mut other, mut other_viscous, mut patch_push) = (0.0, 0.0, 0.0);
             if k == c.front {
                 let (push, element) = self.front_step(c, ds, layer);
-                other += push;
+                other = push;
                 other_viscous =
                     front_viscosity(element, layer.shear_viscosity, layer.shear_stiffness);
             }
             if k == 0 {
                 if let Some(patch) = &self.state.patch {
-                    other += patch.surface * patch.force;
+                    patch_push = patch.surface * patch.force;
                 }
             }
             let mass = 1.0 / self.inv_mass_of(&node) as f64;
@@ -574,6 +574,7 @@ impl Simulation {
                 beta: damping * dt / mass,
                 other,
                 other_viscous,
+                patch: patch_push,
                 cap,
             });
             let (elastic, phi, slips) = (out.elastic, out.force, out.slips);
@@ -698,8 +699,11 @@ impl Simulation {
         };
         // The element's stiffness for its dashpot: the punch's while denting; while
         // cutting, `F_c / a` on the ramps where the force comes and goes with the node's
-        // place (the tip drawn back from the crack front, the node carried ahead), faded
-        // out towards full engagement. At the crack front the force is the cutting force
+        // place (the tip drawn back from the crack front over one radius; the node carried
+        // ahead, whose ramp over a refresh distance is `F_c / refresh`, of the same order:
+        // a = 0.635 mm, refresh h / 10 = 0.3-0.5 mm in the shipped scenes), faded out
+        // towards full engagement. The element's spring state (`front.force`, which the
+        // puncture test reads) is the force before the dashpot. At the crack front the force is the cutting force
         // whatever the node's motion (the tip passes through the material at the
         // insertion speed), so no dashpot there: on that relative speed it would be a
         // viscous cutting force, and it stepped at every change of front node (paper
