@@ -8,7 +8,8 @@
 //!   threads and the GPU when an adapter is found, and `step_inserted/tissue-only/...`:
 //!   the same CPU backend stepped alone, so that the difference is the needle's cost; for
 //!   the GPU, the blocking readbacks per step over [`COUNTED_STEPS`] steps are printed
-//!   first (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out; `NEEDLESIM_NEEDLE_MODEL` picks
+//!   first (one: the needle nodes' forces, so the GPU's step time is the needle step's
+//!   latency from submit to force available, what a haptic loop waits for) (`NEEDLESIM_BENCH_CPU_ONLY` leaves the GPU out; `NEEDLESIM_NEEDLE_MODEL` picks
 //!   another tissue model, [`needle_material`]). Before the held benches, the
 //!   CPU runs print the needle step while the needle advances against the tissue alone
 //!   ([`advancing_overhead`]).
@@ -183,11 +184,11 @@ fn step_inserted_at(
             sim.needle_nodes().len()
         );
         if *name == "gpu" {
-            let before = sim.backend().readbacks();
+            let before = sim.readbacks();
             for _ in 0..COUNTED_STEPS {
                 sim.step().unwrap();
             }
-            let per_step = (sim.backend().readbacks() - before) as f64 / COUNTED_STEPS as f64;
+            let per_step = (sim.readbacks() - before) as f64 / COUNTED_STEPS as f64;
             eprintln!("{name}: {per_step:.3} blocking readbacks per needle step over {COUNTED_STEPS} steps");
         }
         if *name != "gpu" {

@@ -17,14 +17,30 @@
 //! 6. loads, integration, held sets and the divergence guard ([`Stepper::finish_step`]).
 //!
 //! Only needle node rows cross between host and device each step (plus, near the surface,
-//! the corners of the few candidate triangles). With the tip inside, a step without node
-//! edits reads back twice ([`Backend::readbacks`]): the needle nodes' positions and
-//! velocities, with the candidate corners of the far-side test, in one
-//! [`Backend::read_many`] before the force evaluation, and their forces after it. (The
-//! first read needs the last integration, the second this step's forces, and the
-//! integration needs the friction computed from them.) Node edits, the Tip node refresh
-//! and the divergence guard read more. Without a needle, steps go to the backend in
-//! batches between divergence checks ([`Stepper::run`]).
+//! the corners of the few candidate triangles).
+//!
+//! # One readback
+//!
+//! With the tip inside, a step without node edits reads back once
+//! ([`Backend::readbacks`], issue 46): the needle nodes' forces after the force evaluation,
+//! with the positions of the mesh nodes around the crack front and of the contact patch
+//! (and the patch's forces), in one [`Backend::read_many`]. The friction needs this step's
+//! forces and the integration needs the friction, so that read cannot go. The other one,
+//! the needle nodes' positions and velocities at the start of the step, is not needed:
+//! `constrain` writes every needle node's position and velocity, and `apply_friction` its
+//! force, each step, and nothing else touches them before the integration, so the host
+//! integrates them itself (`Simulation::integrate_written`: the backend's
+//! [`integrate_node`] in the backend's position frame, from the zero remainder a position
+//! write leaves). On the CPU that is the backend's result bit for bit (tested: a run that
+//! reads every step back records the same history); a GPU's own integration of the same
+//! values may round differently, and `constrain` overwrites it with the host's next step.
+//! The host's copy serves one step and only while the needle nodes are those it
+//! integrated; node edits, mutable access to the backend ([`Simulation::backend`]) and a
+//! restored checkpoint read the nodes back instead. Steps that add, remove or refresh
+//! needle nodes read more, as do the divergence guard, the Touching state (the split
+//! triangle's corners) and, near the far surface, the far-side test's corners. Without a
+//! needle, steps go to the backend in batches between divergence checks
+//! ([`Stepper::run`]).
 //!
 //! Needle nodes (a stack, removed in reverse order of addition): the Surface node where
 //! the tip first touched; Shaft nodes, one per spacing h of insertion; the Tip node at the
@@ -60,10 +76,11 @@ use crate::node_editor::{EditError, NodeEditor};
 use crate::nodes::{NeedleForce, NeedleNode, NeedleSample};
 use crate::puncture::{PunctureState, Thresholds};
 use crate::script::PoseScript;
-use crate::state::{NeedleState, Passage};
+use crate::state::{Integrated, NeedleState, Passage};
 use crate::SimulationError;
 use glam::DVec3;
 use needlesim_core::boundary::{Boundary, Reaction};
+use needlesim_core::integrator::integrate_node;
 use needlesim_core::math::Vec4;
 use needlesim_core::{Backend, NodeField, SimError, Stepper};
 
@@ -164,9 +181,17 @@ fn vec4(p: DVec3, w: f32) -> [f32; 4] {
 }
 
 impl Simulation {
-    /// The backend.
+    /// The backend. Mutable access may change the needle nodes' state, so the next step
+    /// reads it back instead of taking the host's integration of it (module docs, "One
+    /// readback"); use [`Simulation::readbacks`] to count readbacks.
     pub fn backend(&mut self) -> &mut dyn Backend {
+        self.state.integrated = None;
         self.backend.as_mut()
+    }
+
+    /// The backend's blocking readbacks so far ([`Backend::readbacks`]).
+    pub fn readbacks(&self) -> u64 {
+        self.backend.readbacks()
     }
 
     /// The node editor (neighbour rows and shape information as the backend has them).
@@ -490,6 +515,7 @@ impl Simulation {
         }
         self.apply_friction(&prev, &now)?;
         self.stepper.finish_step(self.backend.as_mut())?;
+        self.integrate_written();
         if self.state.record {
             if self.state.depth_origin.is_none() {
                 self.state.depth_origin = Some(self.aim_point(now.tip(), now.direction()));
@@ -517,11 +543,61 @@ impl Simulation {
         (at(now, s) - at(prev, s)) / self.stepper.dt()
     }
 
+    /// The host's integration of what this step wrote to the needle nodes
+    /// ([`Simulation::apply_friction`]): the same update as the backend's
+    /// ([`integrate_node`], in the backend's position frame, from the remainder 0 a
+    /// position write leaves), so the next step need not read the nodes back.
+    fn integrate_written(&mut self) {
+        let Some(w) = self.state.written.take() else {
+            self.state.integrated = None;
+            return;
+        };
+        let frame = self.backend.position_frame();
+        let params = *self.stepper.params();
+        let (mut positions, mut velocities) = (w.positions, w.velocities);
+        frame.slice_to_frame(&mut positions);
+        for ((x, v), f) in positions.iter_mut().zip(&mut velocities).zip(&w.forces) {
+            integrate_node(x, v, &mut [0.0; 4], *f, &params);
+        }
+        frame.positions_to_world(&mut positions);
+        self.state.integrated = Some(Integrated {
+            nodes: self.state.nodes.iter().map(|n| n.index).collect(),
+            positions,
+            velocities,
+        });
+    }
+
+    /// The needle nodes' positions and velocities after the last step's integration, from
+    /// the host's own integration of it ([`Simulation::integrate_written`]), once per step
+    /// and only while the needle nodes are those it integrated (`None`: read them back).
+    fn take_integrated(&mut self) -> Option<(Vec<Vec4>, Vec<Vec4>)> {
+        let i = self.state.integrated.take()?;
+        let same = i.nodes.len() == self.state.nodes.len()
+            && i.nodes
+                .iter()
+                .zip(&self.state.nodes)
+                .all(|(a, n)| *a == n.index);
+        same.then_some((i.positions, i.velocities))
+    }
+
     /// Positions and velocities of the needle nodes, and the positions of the nodes
-    /// `extra`, in one [`Backend::read_many`].
+    /// `extra`, in one [`Backend::read_many`] (only `extra` is read when the host
+    /// integrated the needle nodes' last step, [`Simulation::take_integrated`]).
     fn read_needle(&mut self, extra: &[u32]) -> Result<NeedleRead, SimError> {
         let n0 = self.editor.n_mesh();
         let m = self.state.nodes.len();
+        if let Some((p, v)) = self.take_integrated() {
+            let mut e = vec![[0.0f32; 4]; extra.len()];
+            if !extra.is_empty() {
+                self.backend
+                    .read_nodes(NodeField::Position, extra, &mut e)?;
+            }
+            return Ok(NeedleRead {
+                positions: p.into_iter().map(xyz).collect(),
+                velocities: v,
+                extra: e,
+            });
+        }
         let (mut p, mut v) = (vec![[0.0f32; 4]; m], vec![[0.0f32; 4]; m]);
         let mut e = vec![[0.0f32; 4]; extra.len()];
         let mut requests = vec![

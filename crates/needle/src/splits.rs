@@ -6,6 +6,7 @@
 
 use crate::puncture::{restore_triangle, split_triangle, Split};
 use crate::surface_query::{first_crossing, segment_triangle, Side, TriangleGrid};
+use glam::DVec3;
 use needlesim_core::{Backend, NodeField, SimError};
 
 /// Surface triangles, their grid and the split stack (entry split, then exit split).
@@ -76,16 +77,17 @@ impl SurfaceSplits {
     /// The first surface triangle crossed by the segment `p0 -> p1` on the deformed
     /// surface (corners read from `backend`), from outside (`entering`, against the
     /// outward normal of the counter-clockwise winding) or from inside, and where.
-    /// Triangles with a corner in `skip` (the needle nodes) are ignored.
+    /// Triangles with a corner in `skip` (the needle nodes) are ignored; `rest` gives a
+    /// node's rest position ([`SurfaceSplits::crossing_query`]).
     pub fn crossing(
         &self,
         backend: &mut dyn Backend,
-        p0: [f64; 3],
-        p1: [f64; 3],
+        (p0, p1): ([f64; 3], [f64; 3]),
         entering: bool,
         skip: &[u32],
+        rest: &dyn Fn(u32) -> Option<[f64; 3]>,
     ) -> Result<Option<(usize, [f64; 3])>, SimError> {
-        let Some(query) = self.crossing_query(p0, p1, entering, skip) else {
+        let Some(query) = self.crossing_query(p0, p1, entering, skip, rest) else {
             return Ok(None);
         };
         let mut pos = vec![[0.0f32; 4]; query.corners.len()];
@@ -97,18 +99,44 @@ impl SurfaceSplits {
     /// corners to read (`None`: no candidate, so no crossing). The caller reads the
     /// corners' positions (with other reads) and gives them to
     /// [`SurfaceSplits::crossing_at`] while the triangles and `skip` are unchanged.
+    ///
+    /// The grid's cells give the triangles whose rest boxes, inflated by the grid's
+    /// margin (how far the surface may have moved), may meet the segment's box, and
+    /// more: whole cells of them. Those whose corners all have a rest position (`rest`
+    /// gives one for a mesh node, `None` for a needle node) and whose inflated rest box
+    /// misses the segment's are dropped, so the corners read are those of triangles
+    /// within the margin of the segment only. (A needle a few spacings inside the body
+    /// read the entry face's corners every step before: the cells reach up to a cell
+    /// beyond the margin.)
     pub fn crossing_query(
         &self,
         p0: [f64; 3],
         p1: [f64; 3],
         entering: bool,
         skip: &[u32],
+        rest: &dyn Fn(u32) -> Option<[f64; 3]>,
     ) -> Option<CrossingQuery> {
         if p0 == p1 {
             return None;
         }
+        let (lo, hi) = (
+            DVec3::from(p0).min(p1.into()),
+            DVec3::from(p0).max(p1.into()),
+        );
+        let margin = self.grid.margin();
+        let within = |t: &[u32; 3]| {
+            let corners: Option<Vec<DVec3>> = t.iter().map(|&v| rest(v).map(DVec3::from)).collect();
+            corners.is_none_or(|c| {
+                let tlo = c.iter().fold(DVec3::INFINITY, |a, &p| a.min(p)) - margin;
+                let thi = c.iter().fold(DVec3::NEG_INFINITY, |a, &p| a.max(p)) + margin;
+                tlo.cmple(hi).all() && lo.cmple(thi).all()
+            })
+        };
         let mut cand = self.grid.candidates(p0, p1);
-        cand.retain(|&c| !self.triangles[c as usize].iter().any(|v| skip.contains(v)));
+        cand.retain(|&c| {
+            let t = &self.triangles[c as usize];
+            !t.iter().any(|v| skip.contains(v)) && within(t)
+        });
         if cand.is_empty() {
             return None;
         }

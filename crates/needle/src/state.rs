@@ -36,6 +36,25 @@ impl Passage {
     }
 }
 
+/// What a step wrote to the needle nodes (indices `n_mesh..n_mesh + len`) before the
+/// integration.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Written {
+    pub positions: Vec<Vec4>,
+    pub velocities: Vec<Vec4>,
+    pub forces: Vec<Vec4>,
+}
+
+/// The needle nodes' state after an integration, for the nodes `nodes` (their indices,
+/// oldest first): positions (world, with the inverse mass in `w`) and velocities, as a
+/// read of [`needlesim_core::NodeField::Position`] and `Velocity` would give them.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Integrated {
+    pub nodes: Vec<u32>,
+    pub positions: Vec<Vec4>,
+    pub velocities: Vec<Vec4>,
+}
+
 /// The needle simulation's state besides the tissue arrays.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct NeedleState {
@@ -57,6 +76,16 @@ pub(crate) struct NeedleState {
     /// in checkpoints: a restored run reads them again.
     #[serde(skip)]
     pub read_velocities: Vec<Vec4>,
+    /// What this step wrote to the needle nodes before the integration: positions (with
+    /// their inverse masses), velocities and forces, for [`NeedleState::integrated`].
+    #[serde(skip)]
+    pub written: Option<Written>,
+    /// The needle nodes' positions and velocities after the last step's integration, as
+    /// the host integrated them from what it wrote ([`crate::simulation`] module docs,
+    /// "One readback"); taken by the next step's first use. Not in checkpoints: a
+    /// restored run reads them back once.
+    #[serde(skip)]
+    pub integrated: Option<Integrated>,
     /// Where the Tip node was last placed.
     pub tip_placed: [f64; 3],
     /// How far the tip advanced along the needle this step, m (its depth past the entry
@@ -135,6 +164,8 @@ impl NeedleState {
             velocities: Vec::new(),
             positions: Vec::new(),
             read_velocities: Vec::new(),
+            written: None,
+            integrated: None,
             tip_placed: [0.0; 3],
             advance: 0.0,
             swept_from: [0.0; 3],

@@ -82,14 +82,18 @@ impl Simulation {
         let known = std::mem::take(&mut self.state.read_velocities);
         if self.state.nodes.iter().any(|n| !self.kinematic(n)) {
             if p.len() != m {
-                p = vec![[0.0f32; 4]; m];
-                self.backend.read_many(
-                    &[
-                        (NodeField::Position, (n0..n0 + m).into()),
-                        (NodeField::Velocity, (n0..n0 + m).into()),
-                    ],
-                    &mut [&mut p, &mut v],
-                )?;
+                if let Some((pi, vi)) = self.take_integrated() {
+                    (p, v) = (pi, vi);
+                } else {
+                    p = vec![[0.0f32; 4]; m];
+                    self.backend.read_many(
+                        &[
+                            (NodeField::Position, (n0..n0 + m).into()),
+                            (NodeField::Velocity, (n0..n0 + m).into()),
+                        ],
+                        &mut [&mut p, &mut v],
+                    )?;
+                }
             } else if known.len() == m {
                 v = known;
             } else {

@@ -337,15 +337,18 @@ impl Simulation {
         entering: bool,
     ) -> Result<Option<(usize, DVec3)>, SimulationError> {
         let skip: Vec<u32> = self.state.nodes.iter().map(|n| n.index).collect();
+        let editor = &self.editor;
+        let rest =
+            |v: u32| ((v as usize) < editor.n_mesh()).then(|| editor.rest_position(v as usize));
         let hit = self
             .state
             .surface
             .crossing(
                 self.backend.as_mut(),
-                p0.to_array(),
-                p1.to_array(),
+                (p0.to_array(), p1.to_array()),
                 entering,
                 &skip,
+                &rest,
             )
             .map_err(|e| self.edit(e.into()))?;
         Ok(hit.map(|(id, p)| (id, DVec3::from(p))))

@@ -63,14 +63,21 @@ impl Simulation {
         // rounding: a rotation about the entry point moves it sideways only).
         let advancing = self.state.advance > 1e-12;
         // The far-side test for the needle nodes as they are: the corners of its candidate
-        // triangles come back with the nodes' positions and velocities in one readback.
-        // Both serve below while no edit changes the nodes (or the split triangles).
+        // triangles (only near a surface) come back with the nodes' positions and
+        // velocities in one readback, or alone when the host integrated the nodes' last
+        // step. Both serve below while no edit changes the nodes (or the split triangles).
         let prev_tip = DVec3::from(self.state.swept_from);
         let query = match advancing {
             true => {
                 let skip: Vec<u32> = self.state.nodes.iter().map(|n| n.index).collect();
                 let (p0, p1) = (prev_tip.to_array(), tip.to_array());
-                self.state.surface.crossing_query(p0, p1, false, &skip)
+                let editor = &self.editor;
+                let rest = |v: u32| {
+                    ((v as usize) < editor.n_mesh()).then(|| editor.rest_position(v as usize))
+                };
+                self.state
+                    .surface
+                    .crossing_query(p0, p1, false, &skip, &rest)
             }
             false => None,
         };

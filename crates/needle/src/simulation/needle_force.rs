@@ -27,7 +27,7 @@ use crate::handover::{fade, HANDOVER_TIME};
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NodeRole};
 use crate::sheath::{front_step, front_viscosity, punch_compliance, sheath_step, SheathStep, Tear};
-use crate::state::Passage;
+use crate::state::{Passage, Written};
 use glam::DVec3;
 use needlesim_core::{NodeField, SimError};
 
@@ -197,6 +197,12 @@ impl Simulation {
                 (k, nodes.len() - k)
             });
             let mut handed = vec![[0.0f32; 4]; mesh];
+            // The patch's nodes' forces, for its push ([`Simulation::sheath_forces`]), come
+            // with the rest unless a handover changes mesh forces in between.
+            let mut patch_force = match handover.is_none() {
+                true => vec![[0.0f32; 4]; patch_nodes.len()],
+                false => Vec::new(),
+            };
             {
                 let mut requests = vec![(NodeField::Force, (n0..n0 + m).into())];
                 let mut outs: Vec<&mut [needlesim_core::math::Vec4]> = vec![&mut f];
@@ -207,6 +213,10 @@ impl Simulation {
                 if !patch_nodes.is_empty() {
                     requests.push((NodeField::Position, patch_nodes.as_slice().into()));
                     outs.push(&mut patch_pos);
+                    if !patch_force.is_empty() {
+                        requests.push((NodeField::Force, patch_nodes.as_slice().into()));
+                        outs.push(&mut patch_force);
+                    }
                 }
                 if let (Some((nodes, _)), true) = (&handover, mesh > 0) {
                     requests.push((NodeField::Force, nodes[..mesh].into()));
@@ -365,7 +375,8 @@ impl Simulation {
                 tip_depth,
             };
             if sheathed {
-                self.sheath_forces(&ctx, &mut f, &patch_pos, &mut total, &mut torque)?;
+                let patch = (patch_pos.as_slice(), patch_force);
+                self.sheath_forces(&ctx, &mut f, patch, &mut total, &mut torque)?;
                 tip = self.state.patch.as_ref().map_or(0.0, |p| p.force)
                     + if front < m {
                         self.state.front.force
@@ -376,6 +387,11 @@ impl Simulation {
                 self.paper_forces(&ctx, &mut f, &mut total);
             }
             self.backend.write(NodeField::Force, n0, &f)?;
+            self.state.written = Some(Written {
+                positions: p,
+                velocities: self.state.velocities.clone(),
+                forces: f,
+            });
         }
         let along = total.dot(t);
         self.state.force = NeedleForce {
@@ -436,7 +452,7 @@ impl Simulation {
         &mut self,
         c: &Step,
         f: &mut [[f32; 4]],
-        patch_pos: &[[f32; 4]],
+        (patch_pos, patch_force): (&[[f32; 4]], Vec<[f32; 4]>),
         total: &mut DVec3,
         torque: &mut f64,
     ) -> Result<(), SimError> {
@@ -467,9 +483,12 @@ impl Simulation {
             self.state.pinned_axial = patch.force;
             // The share of the mesh nodes goes onto their forces; the Surface node's below.
             if patch.force > 0.0 {
-                let mut g = vec![[0.0f32; 4]; patch.nodes.len()];
-                self.backend
-                    .read_nodes(NodeField::Force, &patch.nodes, &mut g)?;
+                let mut g = patch_force;
+                if g.len() != patch.nodes.len() {
+                    g = vec![[0.0f32; 4]; patch.nodes.len()];
+                    self.backend
+                        .read_nodes(NodeField::Force, &patch.nodes, &mut g)?;
+                }
                 for (g, w) in g.iter_mut().zip(&patch.weights) {
                     for (ax, v) in g.iter_mut().take(3).enumerate() {
                         *v = (*v as f64 + w * patch.force * t[ax]) as f32;
