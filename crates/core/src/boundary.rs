@@ -202,17 +202,64 @@ impl HeldSet {
         self.far.is_none() && (self.motion.is_some() || !self.kinematic)
     }
 
-    /// The force of the far-field springs and dashpots on node `k` at world position
-    /// `x` with velocity `v` (the dashpots explicit).
-    fn far_force(&self, f: &FarField, k: usize, x: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-        let n = DVec3::from(f.normals[k]);
-        let u = DVec3::from(x) - DVec3::from(self.rest[k]);
-        let v = DVec3::from(v);
-        let (un, vn) = (u.dot(n), v.dot(n));
-        let [cn, ct] = f.dashpots[k];
+    /// The far-field springs' force on node `k` displaced by `u` from its rest position.
+    fn far_spring(&self, f: &FarField, k: usize, u: DVec3) -> DVec3 {
+        let (un, ut) = normal_tangent(DVec3::from(f.normals[k]), u);
         let [kn, kt] = f.springs[k];
-        (-(cn * vn + kn * un) * n - ct * (v - vn * n) - kt * (u - un * n)).to_array()
+        -kn * un - kt * ut
     }
+
+    /// The force of the far-field springs and dashpots on node `k` of `s` (the dashpots
+    /// explicit: the reaction after the step).
+    fn far_force(&self, f: &FarField, k: usize, s: &FarRead) -> DVec3 {
+        let (vn, vt) = normal_tangent(DVec3::from(f.normals[k]), s.velocity[k]);
+        let [cn, ct] = f.dashpots[k];
+        self.far_spring(f, k, s.position[k] - DVec3::from(self.rest[k])) - cn * vn - ct * vt
+    }
+
+    /// The set's nodes as the backend has them, in one read: world positions to the
+    /// remainder, velocities, inverse masses, and with `forces` the forces.
+    fn read_far(&self, b: &mut dyn Backend, forces: bool) -> Result<FarRead, SimError> {
+        let n = self.nodes.len();
+        let (mut x, mut r) = (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n]);
+        let mut v = vec![[0.0f32; 4]; n];
+        let mut f = vec![[0.0f32; 4]; if forces { n } else { 0 }];
+        let list = NodeSelection::List(&self.nodes);
+        let mut requests = vec![
+            (NodeField::Position, list.clone()),
+            (NodeField::PositionRemainder, list.clone()),
+            (NodeField::Velocity, list.clone()),
+        ];
+        let mut outs: Vec<&mut [[f32; 4]]> = vec![&mut x, &mut r, &mut v];
+        if forces {
+            requests.push((NodeField::Force, list));
+            outs.push(&mut f);
+        }
+        b.read_many(&requests, &mut outs)?;
+        let f64s = |p: &[f32; 4]| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        Ok(FarRead {
+            position: x.iter().zip(&r).map(|(x, r)| f64s(x) + f64s(r)).collect(),
+            velocity: v.iter().map(f64s).collect(),
+            inv_mass: x.iter().map(|x| x[3] as f64).collect(),
+            force: f,
+        })
+    }
+}
+
+/// A far-field set's nodes as read back ([`HeldSet::read_far`]).
+struct FarRead {
+    /// World positions, f32 value plus remainder.
+    position: Vec<DVec3>,
+    velocity: Vec<DVec3>,
+    inv_mass: Vec<f64>,
+    /// Forces (empty unless asked for).
+    force: Vec<[f32; 4]>,
+}
+
+/// The parts of `a` along the unit normal `n` and across it.
+fn normal_tangent(n: DVec3, a: DVec3) -> (DVec3, DVec3) {
+    let an = a.dot(n) * n;
+    (an, a - an)
 }
 
 impl Boundary {
@@ -269,41 +316,24 @@ impl Boundary {
         let g = DVec3::from(p.gravity.map(|g| g as f64));
         for h in &self.held {
             let Some(far) = &h.far else { continue };
-            let n = h.nodes.len();
-            let (mut x, mut r) = (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n]);
-            let (mut v, mut f) = (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n]);
-            let list = NodeSelection::List(&h.nodes);
-            b.read_many(
-                &[
-                    (NodeField::Position, list.clone()),
-                    (NodeField::PositionRemainder, list.clone()),
-                    (NodeField::Velocity, list.clone()),
-                    (NodeField::Force, list),
-                ],
-                &mut [&mut x, &mut r, &mut v, &mut f],
-            )?;
-            for k in 0..n {
-                let w = x[k][3] as f64;
+            let s = h.read_far(b, true)?;
+            let mut f = s.force.clone();
+            for k in 0..h.nodes.len() {
+                let w = s.inv_mass[k];
                 // A node another set holds in all components does not move: no force (it
                 // would only bias that set's reaction).
                 if w == 0.0 {
                     continue;
                 }
-                let nrm = DVec3::from(far.normals[k]);
-                let pos: [f64; 3] = std::array::from_fn(|a| x[k][a] as f64 + r[k][a] as f64);
-                let u = DVec3::from(pos) - DVec3::from(h.rest[k]);
                 let force = DVec3::new(f[k][0] as f64, f[k][1] as f64, f[k][2] as f64);
-                let vel = DVec3::new(v[k][0] as f64, v[k][1] as f64, v[k][2] as f64);
-                let [cn, ct] = far.dashpots[k];
-                let [kn, kt] = far.springs[k];
-                let un = u.dot(nrm);
-                let spring = -kn * un * nrm - kt * (u - un * nrm);
+                let spring = h.far_spring(far, k, s.position[k] - DVec3::from(h.rest[k]));
                 // The velocity the step would reach without the dashpots (zero at rest,
                 // where the springs balance the rest).
-                let v_star = vel + dt * ((force + spring) * w + g);
-                let vn = v_star.dot(nrm);
+                let v_star = s.velocity[k] + dt * ((force + spring) * w + g);
+                let (vn, vt) = normal_tangent(DVec3::from(far.normals[k]), v_star);
+                let [cn, ct] = far.dashpots[k];
                 let implicit = |c: f64| c * d / (1.0 + d * dt * c * w);
-                let add = spring - implicit(cn) * vn * nrm - implicit(ct) * (v_star - vn * nrm);
+                let add = spring - implicit(cn) * vn - implicit(ct) * vt;
                 for a in 0..3 {
                     f[k][a] = (force[a] + add[a]) as f32;
                 }
@@ -386,24 +416,11 @@ impl Boundary {
         let mut out = Vec::with_capacity(self.held.len());
         for h in &self.held {
             if let Some(far) = &h.far {
-                let n = h.nodes.len();
-                let (mut x, mut rem) = (vec![[0.0f32; 4]; n], vec![[0.0f32; 4]; n]);
-                let mut v = vec![[0.0f32; 4]; n];
-                let list = NodeSelection::List(&h.nodes);
-                b.read_many(
-                    &[
-                        (NodeField::Position, list.clone()),
-                        (NodeField::PositionRemainder, list.clone()),
-                        (NodeField::Velocity, list),
-                    ],
-                    &mut [&mut x, &mut rem, &mut v],
-                )?;
-                let mut r = DVec3::ZERO;
-                for k in (0..n).filter(|&k| x[k][3] != 0.0) {
-                    let p = std::array::from_fn(|a| x[k][a] as f64 + rem[k][a] as f64);
-                    let vel = std::array::from_fn(|a| v[k][a] as f64);
-                    r += DVec3::from(h.far_force(far, k, p, vel));
-                }
+                let s = h.read_far(b, false)?;
+                let r: DVec3 = (0..h.nodes.len())
+                    .filter(|&k| s.inv_mass[k] != 0.0)
+                    .map(|k| h.far_force(far, k, &s))
+                    .sum();
                 out.push(Reaction {
                     name: h.name.clone(),
                     force: r.to_array(),
