@@ -178,19 +178,22 @@ fn step_inserted_at(
         // 6 cm in at 10 cm/s (3250 steps of 0.2 ms), then the needle holds still.
         sim.step_n(3300).unwrap();
         assert_eq!(sim.state(), PunctureState::Inside);
-        let n = sim.backend().n_active();
-        eprintln!(
-            "{name}: {} needle nodes, {n} active nodes",
-            sim.needle_nodes().len()
-        );
         if *name == "gpu" {
             let before = sim.readbacks();
             for _ in 0..COUNTED_STEPS {
                 sim.step().unwrap();
             }
             let per_step = (sim.readbacks() - before) as f64 / COUNTED_STEPS as f64;
-            eprintln!("{name}: {per_step:.3} blocking readbacks per needle step over {COUNTED_STEPS} steps");
+            eprintln!(
+                "{name}: {per_step:.3} blocking readbacks per needle step over \
+                 {COUNTED_STEPS} steps"
+            );
         }
+        let n = sim.backend().n_active();
+        eprintln!(
+            "{name}: {} needle nodes, {n} active nodes",
+            sim.needle_nodes().len()
+        );
         if *name != "gpu" {
             advancing_overhead(name, sim, &scene, *threading);
         }

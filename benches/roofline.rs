@@ -28,6 +28,8 @@
 //!   counts are within about 10%; the shape matching frames count the rotation
 //!   extraction's full iteration budget, which a converged frame cuts short.
 //!
+//! - The integration alone (every model's last pass): 112 bytes and 36 flops per node.
+//!
 //! `cargo bench --bench roofline` (about a minute on 2 cores).
 
 use needlesim::core::models::VISCOUS_NEXT;
@@ -179,6 +181,20 @@ fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
         }
 }
 
+/// Median seconds of one integration of `b` alone (no force pass) over `steps`.
+fn integration_time(b: &mut CpuBackend, steps: usize) -> f64 {
+    b.integrate();
+    let mut t: Vec<f64> = (0..steps)
+        .map(|_| {
+            let s = Instant::now();
+            b.integrate();
+            s.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
 /// Median seconds of one step of `b` over `steps` single steps.
 fn step_time(b: &mut CpuBackend, steps: usize) -> f64 {
     b.step(3);
@@ -235,4 +251,21 @@ fn main() {
             100.0 * flop_rate / fl1
         );
     }
+    // The integration alone: position, velocity and position remainder read and written,
+    // the force read (112 bytes per node), 36 flops.
+    let (_, material) = MODELS[0];
+    let tissue = Tissue::from_scene(&cube(material, nodes, 1e-5, 1.01)).unwrap();
+    let n = tissue.n_mesh;
+    let bytes = 112.0;
+    let flops = 36.0;
+    let mut b = CpuBackend::new(tissue, Threading::Single).unwrap();
+    let t = integration_time(&mut b, 50);
+    let (rate, flop_rate) = (bytes * n as f64 / t / 1e9, flops * n as f64 / t / 1e9);
+    println!(
+        "{:<14} {n:>8} {bytes:>10.0} {flops:>10.0} {:>9.3} {rate:>7.2} {flop_rate:>9.2} {:>7.1}% {:>7.1}%",
+        "integration",
+        1e3 * t,
+        100.0 * rate / bw1,
+        100.0 * flop_rate / fl1
+    );
 }

@@ -493,6 +493,7 @@ impl Simulation {
         let now = self.state.needle.expect("needle present");
         self.state.prev = Some(now);
         // Nothing of an earlier step's edits that ended in an error is carried over.
+        self.state.written = None;
         self.state.before_edits.clear();
         self.state.edit_low = None;
         self.state.edit_shaft = false;
@@ -514,8 +515,11 @@ impl Simulation {
             self.apply_handover()?;
         }
         self.apply_friction(&prev, &now)?;
+        // What the host integrated last step serves this step only (an error below
+        // leaves none behind).
+        self.state.integrated = None;
         self.stepper.finish_step(self.backend.as_mut())?;
-        self.integrate_written();
+        self.integrate_written()?;
         if self.state.record {
             if self.state.depth_origin.is_none() {
                 self.state.depth_origin = Some(self.aim_point(now.tip(), now.direction()));
@@ -546,25 +550,45 @@ impl Simulation {
     /// The host's integration of what this step wrote to the needle nodes
     /// ([`Simulation::apply_friction`]): the same update as the backend's
     /// ([`integrate_node`], in the backend's position frame, from the remainder 0 a
-    /// position write leaves), so the next step need not read the nodes back.
-    fn integrate_written(&mut self) {
+    /// position write leaves), so the next step need not read the nodes back. The result
+    /// is written back (stored positions and remainders, velocities: an upload, no
+    /// readback), so the backend holds what the host does: bit for bit what the CPU
+    /// backend computed anyway, and on a GPU, which may round its own integration
+    /// differently, the same state whether or not anyone reads it between steps.
+    fn integrate_written(&mut self) -> Result<(), SimError> {
         let Some(w) = self.state.written.take() else {
-            self.state.integrated = None;
-            return;
+            return Ok(());
         };
         let frame = self.backend.position_frame();
         let params = *self.stepper.params();
-        let (mut positions, mut velocities) = (w.positions, w.velocities);
-        frame.slice_to_frame(&mut positions);
-        for ((x, v), f) in positions.iter_mut().zip(&mut velocities).zip(&w.forces) {
-            integrate_node(x, v, &mut [0.0; 4], *f, &params);
+        let (mut stored, mut velocities) = (w.positions, w.velocities);
+        let mut remainders = vec![[0.0f32; 4]; stored.len()];
+        frame.slice_to_frame(&mut stored);
+        for (((x, v), r), f) in stored
+            .iter_mut()
+            .zip(&mut velocities)
+            .zip(&mut remainders)
+            .zip(&w.forces)
+        {
+            integrate_node(x, v, r, *f, &params);
         }
+        if let Some(&first) = w.nodes.first() {
+            let first = first as usize;
+            self.backend
+                .write(NodeField::StoredPosition, first, &stored)?;
+            self.backend
+                .write(NodeField::StoredRemainder, first, &remainders)?;
+            self.backend
+                .write(NodeField::Velocity, first, &velocities)?;
+        }
+        let mut positions = stored;
         frame.positions_to_world(&mut positions);
         self.state.integrated = Some(Integrated {
-            nodes: self.state.nodes.iter().map(|n| n.index).collect(),
+            nodes: w.nodes,
             positions,
             velocities,
         });
+        Ok(())
     }
 
     /// The needle nodes' positions and velocities after the last step's integration, from

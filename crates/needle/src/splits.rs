@@ -102,12 +102,14 @@ impl SurfaceSplits {
     ///
     /// The grid's cells give the triangles whose rest boxes, inflated by the grid's
     /// margin (how far the surface may have moved), may meet the segment's box, and
-    /// more: whole cells of them. Those whose corners all have a rest position (`rest`
-    /// gives one for a mesh node, `None` for a needle node) and whose inflated rest box
-    /// misses the segment's are dropped, so the corners read are those of triangles
-    /// within the margin of the segment only. (A needle a few spacings inside the body
-    /// read the entry face's corners every step before: the cells reach up to a cell
-    /// beyond the margin.)
+    /// more: whole cells of them, which reach up to a few cells farther. Those whose
+    /// corners all have a rest position (`rest` gives one for a mesh node, `None` for a
+    /// needle node) and whose rest box inflated by the margin plus one cell misses the
+    /// segment's are dropped, so a needle well inside the body no longer reads the entry
+    /// face's corners every step. What the cells alone were sure to find was the margin's
+    /// reach (more by up to two cells, depending on where the cell boundaries fell); the
+    /// extra cell keeps some of that slack, as nothing enforces the margin (a surface
+    /// tenting out before the tip leaves may move farther).
     pub fn crossing_query(
         &self,
         p0: [f64; 3],
@@ -123,7 +125,7 @@ impl SurfaceSplits {
             DVec3::from(p0).min(p1.into()),
             DVec3::from(p0).max(p1.into()),
         );
-        let margin = self.grid.margin();
+        let margin = self.grid.margin() + self.grid.cell();
         let within = |t: &[u32; 3]| {
             let corners: Option<Vec<DVec3>> = t.iter().map(|&v| rest(v).map(DVec3::from)).collect();
             corners.is_none_or(|c| {

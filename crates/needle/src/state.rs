@@ -40,6 +40,8 @@ impl Passage {
 /// integration.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Written {
+    /// The needle nodes' indices when written.
+    pub nodes: Vec<u32>,
     pub positions: Vec<Vec4>,
     pub velocities: Vec<Vec4>,
     pub forces: Vec<Vec4>,
@@ -82,8 +84,9 @@ pub(crate) struct NeedleState {
     pub written: Option<Written>,
     /// The needle nodes' positions and velocities after the last step's integration, as
     /// the host integrated them from what it wrote ([`crate::simulation`] module docs,
-    /// "One readback"); taken by the next step's first use. Not in checkpoints: a
-    /// restored run reads them back once.
+    /// "One readback"); taken by the next step's first use. Not in checkpoint files: a
+    /// run restored from one reads them back once (an in-memory checkpoint keeps them;
+    /// either way they equal what the backend holds, which the host wrote back).
     #[serde(skip)]
     pub integrated: Option<Integrated>,
     /// Where the Tip node was last placed.

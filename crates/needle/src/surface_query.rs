@@ -162,6 +162,11 @@ impl TriangleGrid {
         self.margin
     }
 
+    /// The cell size, m.
+    pub fn cell(&self) -> f64 {
+        self.cell
+    }
+
     fn cell_of(&self, p: DVec3) -> [usize; 3] {
         let c = ((p - self.origin) / self.cell).floor().to_array();
         std::array::from_fn(|a| (c[a].max(0.0) as usize).min(self.dims[a] - 1))

@@ -388,6 +388,7 @@ impl Simulation {
             }
             self.backend.write(NodeField::Force, n0, &f)?;
             self.state.written = Some(Written {
+                nodes: self.state.nodes.iter().map(|n| n.index).collect(),
                 positions: p,
                 velocities: self.state.velocities.clone(),
                 forces: f,
