@@ -308,21 +308,14 @@ impl Simulation {
             Some(load) => load,
             // The first Tip node takes over the crack front from the deepest node: it
             // strains the tissue ahead as that node did.
-            None if st.per_length
-                && self.depth_of(now.tip(), now.direction()) < self.state.cut_depth - 1e-9 =>
-            {
-                // Handed over like a Shaft node ([`crate::handover`]): it changes the
-                // rows around it once per re-insertion, as its last removal did.
-                st.retracked_tip = true;
-                self.state.edit_shaft = true;
-                let front = self.state.nodes[last].index;
-                let o = self
-                    .editor
-                    .elastic_offset(self.backend.as_mut(), front)
-                    .map_err(|e| self.edit(e))?;
-                (FrictionState::Slip, v_tip, Placement::Offset(o))
-            }
             None if st.per_length => {
+                // Put on again behind the crack front (advancing after a withdrawal):
+                // handed over like a Shaft node ([`crate::handover`]), as its last
+                // removal was, once per re-insertion; its loads in `finish_inside`.
+                if self.depth_of(now.tip(), now.direction()) < self.state.cut_depth - 1e-9 {
+                    st.retracked_tip = true;
+                    self.state.edit_shaft = true;
+                }
                 let front = self.state.nodes[last].index;
                 let o = self
                     .editor
