@@ -218,7 +218,10 @@ fn shape_rows_written_on_either_backend_agree() {
 /// the `Backend` API they still read and write node-major. Rest lengths written at element
 /// ranges that start and end inside rows, and whole neighbour rows, read back exactly what
 /// the CPU backend holds after the same writes, and the forces then agree to f32
-/// round-off (1e-5 of the largest, as above).
+/// round-off (1e-5 of the largest, as above). The writes mix short runs, which the GPU
+/// backend batches until the next submit (`crates/gpu/src/scatter.rs`), with a run of
+/// 100 whole rows written directly over them, short writes after it, and one element
+/// written twice in a batch: the last write wins everywhere, as on the CPU.
 #[test]
 fn per_slot_arrays_round_trip_at_any_element_range() {
     let scene = cube_scene(MODELS[0].1, 639, 0.0, [1.0; 3]);
@@ -227,8 +230,21 @@ fn per_slot_arrays_round_trip_at_any_element_range() {
     let Some(mut g) = gpu(&tissue) else { return };
     let mut c = backend(&scene, Threading::Single);
     let total = tissue.n_mesh * k * 4;
-    for (first, count) in [(7 * k + 3, 2 * k + 5), (0, 1), (k - 1, 2), (5 * k, k)] {
-        let values: Vec<f32> = (0..count).map(|e| 0.01 + 1e-4 * e as f32).collect();
+    let writes = [
+        (7 * k + 3, 2 * k + 5),
+        (0, 1),
+        (k - 1, 2),
+        (5 * k, k),
+        (3 * k, 2),
+        (0, 100 * k + 7),
+        (50 * k + 1, 3),
+        (50 * k + 2, 1),
+        (120 * k, 2 * k),
+    ];
+    for (w, (first, count)) in writes.into_iter().enumerate() {
+        let values: Vec<f32> = (0..count)
+            .map(|e| 0.01 + 1e-4 * e as f32 + 1e-6 * w as f32)
+            .collect();
         for b in [&mut c as &mut dyn Backend, &mut g] {
             b.write_shape_bytes(
                 ShapeArray::RestLength,

@@ -3,12 +3,13 @@
 //! range reads and writes, neighbour rows), with a count of blocking readbacks and opt-in
 //! per-kernel timestamps ([`GpuBackend::enable_profiling`]).
 
-use crate::buffers::{storage, Buffers};
+use crate::buffers::{storage, Binding, Buffers};
 use crate::context::{GpuContext, GpuError};
 use crate::kernels::{self, Pass, WORKGROUP};
 use crate::layout;
 use crate::params::Params;
 use crate::profile::{map_read, KernelTime, Profiler};
+use crate::scatter::{Scatter, DIRECT_RUN};
 use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
 use needlesim_core::frame::PositionFrame;
 use needlesim_core::models::mls::ViscoRow;
@@ -16,6 +17,7 @@ use needlesim_core::models::ShapeArray;
 use needlesim_core::{Backend, NodeField, NodeSelection, SimError, Tissue, Vec4};
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 /// Steps recorded per command buffer by [`Backend::step`].
@@ -43,6 +45,8 @@ pub struct GpuBackend {
     profiler: Option<Profiler>,
     /// The frame the positions buffer holds ([`needlesim_core::frame`]).
     frame: PositionFrame,
+    /// Row edits waiting for the next submit or readback ([`crate::scatter`]).
+    scatter: Mutex<Scatter>,
 }
 
 /// The device buffers the tissue needs, by name: its arrays, with the viscoelastic
@@ -192,6 +196,7 @@ impl GpuBackend {
         let force_passes = crate::models::force_passes(device, &tissue.shape, &buffers);
         let integrate = kernels::INTEGRATE_NODE.pass(device, &buffers);
         let end_step = crate::models::end_step_passes(device, &tissue.shape, &buffers);
+        let scatter = Mutex::new(Scatter::new(device));
         let mut backend = GpuBackend {
             max_groups_x: device.limits().max_compute_workgroups_per_dimension,
             ctx,
@@ -205,6 +210,7 @@ impl GpuBackend {
             readbacks: AtomicU64::new(0),
             profiler: None,
             frame,
+            scatter,
         };
         backend
             .set_n_active(st.n_active)
@@ -300,6 +306,7 @@ impl GpuBackend {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("steps"),
             });
+        self.record_scatter(&mut encoder);
         self.record(&mut encoder, steps, forces, integrate);
         self.ctx.queue.submit([encoder.finish()]);
     }
@@ -452,20 +459,68 @@ impl GpuBackend {
     }
 
     /// Writes node-major elements `elements` (`data`, [`layout::ELEMENT`] bytes each) of a
-    /// per-slot array that the device stores slot-major: one write per slot.
-    fn write_per_slot(&self, buffer: &wgpu::Buffer, k: usize, elements: Range<usize>, data: &[u8]) {
+    /// per-slot array that the device stores slot-major (`target`). A slot's run of at
+    /// least [`DIRECT_RUN`] nodes is one `write_buffer` (after the edits of `target` that
+    /// wait, so that the order holds); shorter runs wait as word pairs for the next submit
+    /// or readback ([`crate::scatter`]).
+    fn write_per_slot(&self, target: Binding, k: usize, elements: Range<usize>, data: &[u8]) {
         let first = elements.start;
+        let word = |at: usize| {
+            let at = at * layout::ELEMENT;
+            u32::from_ne_bytes(data[at..at + layout::ELEMENT].try_into().expect("4 bytes"))
+        };
         for run in layout::runs(elements, k) {
-            let bytes: Vec<u8> = (0..run.nodes.len())
-                .flat_map(|n| {
-                    let at = run.source(n, k, first) * layout::ELEMENT;
-                    data[at..at + layout::ELEMENT].iter().copied()
-                })
-                .collect();
-            self.ctx
-                .queue
-                .write_buffer(buffer, run.offset(self.capacity), &bytes);
+            let offset = run.offset(self.capacity);
+            let len = run.nodes.len();
+            if len >= DIRECT_RUN {
+                if self.lock_scatter().pending_for(target) {
+                    self.flush_scatter();
+                }
+                let words: Vec<u32> = (0..len).map(|n| word(run.source(n, k, first))).collect();
+                self.ctx.queue.write_buffer(
+                    self.buffers.get(target),
+                    offset,
+                    bytemuck::cast_slice(&words),
+                );
+            } else {
+                if self.lock_scatter().full() {
+                    self.flush_scatter();
+                }
+                let at = offset as usize / layout::ELEMENT;
+                self.lock_scatter().push(
+                    target,
+                    (0..len).map(|n| [(at + n) as u32, word(run.source(n, k, first))]),
+                );
+            }
         }
+    }
+
+    fn lock_scatter(&self) -> std::sync::MutexGuard<'_, Scatter> {
+        // A panic while the lock was held left at worst some edits pending.
+        self.scatter.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Records the waiting row edits at the start of `encoder` ([`crate::scatter`]).
+    fn record_scatter(&self, encoder: &mut wgpu::CommandEncoder) {
+        self.lock_scatter().record(
+            &self.ctx.device,
+            &self.ctx.queue,
+            &self.buffers,
+            encoder,
+            self.max_groups_x,
+        );
+    }
+
+    /// Submits the waiting row edits on their own.
+    fn flush_scatter(&self) {
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("scatter"),
+            });
+        self.record_scatter(&mut encoder);
+        self.ctx.queue.submit([encoder.finish()]);
     }
 
     /// Elements per node of an array the device stores component-major (`crate::layout`):
@@ -503,6 +558,7 @@ impl GpuBackend {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("read"),
             });
+        self.record_scatter(&mut encoder);
         let mut at = 0u64;
         for (buffer, offset, out) in pieces.iter() {
             let len = out.len() as u64;
@@ -733,13 +789,13 @@ impl Backend for GpuBackend {
         check_rows(first, index, weight, k, self.capacity)?;
         let elements = first * k..first * k + index.len();
         self.write_per_slot(
-            &self.buffers.nb_index,
+            Binding::NeighbourIndex,
             k,
             elements.clone(),
             bytemuck::cast_slice(index),
         );
         self.write_per_slot(
-            &self.buffers.nb_weight,
+            Binding::NeighbourWeight,
             k,
             elements,
             bytemuck::cast_slice(weight),
@@ -763,7 +819,8 @@ impl Backend for GpuBackend {
         if let Some((_, buffer)) = target {
             if let Some(k) = self.strided(array) {
                 let first = offset / layout::ELEMENT;
-                self.write_per_slot(buffer, k, first..first + data.len() / layout::ELEMENT, data);
+                let elements = first..first + data.len() / layout::ELEMENT;
+                self.write_per_slot(Binding::Model(array), k, elements, data);
             } else if !data.is_empty() {
                 self.ctx.queue.write_buffer(buffer, offset as u64, data);
             }

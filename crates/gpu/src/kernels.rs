@@ -112,6 +112,11 @@ impl Kernel {
         })
     }
 
+    /// The layout of bind group 0 (for a bind group that binds part of a buffer).
+    pub(crate) fn bind_group_layout(&self) -> wgpu::BindGroupLayout {
+        self.pipeline.get_bind_group_layout(0)
+    }
+
     /// Records one dispatch of `groups` workgroups (x, y) in `pass`.
     pub fn dispatch(
         &self,

@@ -29,6 +29,7 @@ mod layout;
 pub mod models;
 mod params;
 mod profile;
+mod scatter;
 
 pub use backend::{largest_buffer, GpuBackend};
 pub use buffers::{Binding, Buffers};
