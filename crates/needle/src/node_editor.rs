@@ -493,8 +493,20 @@ impl NodeEditor {
         if cand.is_empty() {
             return Err(EditError::NoNeighbours { position: x });
         }
+        // The candidates' positions, with the slot's old state for the undo log (one
+        // readback on a GPU; nothing below writes the slot's position or velocity before
+        // the log takes it).
         let mut pos = vec![[0.0f32; 4]; cand.len()];
-        backend.read_nodes(NodeField::Position, &cand, &mut pos)?;
+        let mut old_p = [[0.0f32; 4]];
+        let mut old_v = [[0.0f32; 4]];
+        backend.read_many(
+            &[
+                (NodeField::Position, cand.as_slice().into()),
+                (NodeField::Position, (i..i + 1).into()),
+                (NodeField::Velocity, (i..i + 1).into()),
+            ],
+            &mut [&mut pos, &mut old_p, &mut old_v],
+        )?;
         let xi = [x[0], x[1], x[2], 0.0];
         let mut near: Vec<(f64, u32, Vec4)> = cand
             .iter()
@@ -616,16 +628,7 @@ impl NodeEditor {
             )?;
         }
 
-        // The slot's state.
-        let mut old_p = [[0.0f32; 4]];
-        let mut old_v = [[0.0f32; 4]];
-        backend.read_many(
-            &[
-                (NodeField::Position, (i..i + 1).into()),
-                (NodeField::Velocity, (i..i + 1).into()),
-            ],
-            &mut [&mut old_p, &mut old_v],
-        )?;
+        // The slot's state (read with the candidates).
         undo.push(Undo::Slot {
             node: i as u32,
             position: old_p[0],
