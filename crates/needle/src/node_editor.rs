@@ -125,6 +125,24 @@ pub struct NodeEditor {
     /// The frame of `rest` and of the shape information's rest positions
     /// ([`Tissue::frame`]); positions read from the backend are world ones.
     frame: PositionFrame,
+    /// What the backend holds, while a sequence of edits that moves no node keeps it
+    /// ([`NodeEditor::begin_memo`]).
+    memo: Option<Memo>,
+    /// The last addition's neighbours and their positions as it read them
+    /// ([`NodeEditor::last_neighbour_positions`]).
+    last_neighbours: Vec<(u32, Vec4)>,
+}
+
+/// Positions and slot states read from the backend or written to it since
+/// [`NodeEditor::begin_memo`], as a read would give them now: a settle re-places the same
+/// few nodes several times among the same neighbours, and on a GPU each addition's read
+/// was a blocking readback.
+#[derive(Debug, Clone, Default)]
+struct Memo {
+    /// World positions by node.
+    position: std::collections::HashMap<u32, Vec4>,
+    /// Velocities by node.
+    velocity: std::collections::HashMap<u32, Vec4>,
 }
 
 impl NodeEditor {
@@ -165,7 +183,118 @@ impl NodeEditor {
             n_active: tissue.state.n_active,
             log: Vec::new(),
             frame,
+            memo: None,
+            last_neighbours: Vec::new(),
         }
+    }
+
+    /// From now until [`NodeEditor::end_memo`], positions and velocities the editor reads
+    /// or writes are remembered and not read again: for a sequence of removals and
+    /// additions during which nothing else writes a position or velocity and no step is
+    /// taken (other writes go through [`NodeEditor::note_position`]). A value written is
+    /// remembered as a read would return it (through the backend's position frame, as
+    /// [`Backend::write`] stores it).
+    pub(crate) fn begin_memo(&mut self) {
+        self.memo = Some(Memo::default());
+    }
+
+    /// Ends [`NodeEditor::begin_memo`].
+    pub(crate) fn end_memo(&mut self) {
+        self.memo = None;
+    }
+
+    /// The positions of `nodes` as the last addition read them, if it read all of them
+    /// (they are among the K nearest it chose from): the caller that asks before
+    /// anything moves the tissue gets what a read would give, without one.
+    pub(crate) fn last_neighbour_positions(&self, nodes: &[u32]) -> Option<Vec<Vec4>> {
+        nodes
+            .iter()
+            .map(|j| {
+                self.last_neighbours
+                    .iter()
+                    .find(|(i, _)| i == j)
+                    .map(|(_, p)| *p)
+            })
+            .collect()
+    }
+
+    /// Records that `position` (world) was written to node `i` outside the editor, while
+    /// a memo is kept.
+    pub(crate) fn note_position(&mut self, backend: &dyn Backend, i: u32, position: Vec4) {
+        if let Some(m) = self.memo.as_mut() {
+            m.position.insert(i, stored_as_read(backend, position));
+        }
+    }
+
+    /// Positions of `nodes` and the position and velocity of `slot`: from the memo where
+    /// it has them, the rest in one read.
+    fn read_around(
+        &mut self,
+        backend: &mut dyn Backend,
+        nodes: &[u32],
+        slot: usize,
+    ) -> Result<(Vec<Vec4>, Vec4, Vec4), EditError> {
+        let slot_u = slot as u32;
+        let Some(memo) = self.memo.as_mut() else {
+            let mut pos = vec![[0.0f32; 4]; nodes.len()];
+            let (mut p, mut v) = ([[0.0f32; 4]], [[0.0f32; 4]]);
+            backend.read_many(
+                &[
+                    (NodeField::Position, nodes.into()),
+                    (NodeField::Position, (slot..slot + 1).into()),
+                    (NodeField::Velocity, (slot..slot + 1).into()),
+                ],
+                &mut [&mut pos, &mut p, &mut v],
+            )?;
+            return Ok((pos, p[0], v[0]));
+        };
+        let mut missing: Vec<u32> = nodes
+            .iter()
+            .copied()
+            .filter(|j| !memo.position.contains_key(j))
+            .collect();
+        if !memo.position.contains_key(&slot_u) {
+            missing.push(slot_u);
+        }
+        missing.sort_unstable();
+        missing.dedup();
+        let want_v = !memo.velocity.contains_key(&slot_u);
+        if !missing.is_empty() || want_v {
+            let mut pos = vec![[0.0f32; 4]; missing.len()];
+            let mut v = [[0.0f32; 4]];
+            let mut requests = vec![(NodeField::Position, missing.as_slice().into())];
+            let mut outs: Vec<&mut [Vec4]> = vec![&mut pos];
+            if want_v {
+                requests.push((NodeField::Velocity, (slot..slot + 1).into()));
+                outs.push(&mut v);
+            }
+            backend.read_many(&requests, &mut outs)?;
+            memo.position.extend(missing.into_iter().zip(pos));
+            if want_v {
+                memo.velocity.insert(slot_u, v[0]);
+            }
+        }
+        let pos = nodes.iter().map(|j| memo.position[j]).collect();
+        Ok((pos, memo.position[&slot_u], memo.velocity[&slot_u]))
+    }
+
+    /// Writes node `i`'s position and velocity, and remembers them as a read would
+    /// return them while a memo is kept.
+    fn write_state(
+        &mut self,
+        backend: &mut dyn Backend,
+        i: usize,
+        position: Vec4,
+        velocity: Vec4,
+    ) -> Result<(), EditError> {
+        backend.write(NodeField::Position, i, &[position])?;
+        backend.write(NodeField::Velocity, i, &[velocity])?;
+        if let Some(m) = self.memo.as_mut() {
+            m.position
+                .insert(i as u32, stored_as_read(backend, position));
+            m.velocity.insert(i as u32, velocity);
+        }
+        Ok(())
     }
 
     /// Nodes simulated now.
@@ -494,19 +623,9 @@ impl NodeEditor {
             return Err(EditError::NoNeighbours { position: x });
         }
         // The candidates' positions, with the slot's old state for the undo log (one
-        // readback on a GPU; nothing below writes the slot's position or velocity before
-        // the log takes it).
-        let mut pos = vec![[0.0f32; 4]; cand.len()];
-        let mut old_p = [[0.0f32; 4]];
-        let mut old_v = [[0.0f32; 4]];
-        backend.read_many(
-            &[
-                (NodeField::Position, cand.as_slice().into()),
-                (NodeField::Position, (i..i + 1).into()),
-                (NodeField::Velocity, (i..i + 1).into()),
-            ],
-            &mut [&mut pos, &mut old_p, &mut old_v],
-        )?;
+        // readback on a GPU, none for what a memo holds; nothing below writes the slot's
+        // position or velocity before the log takes it).
+        let (pos, old_p, old_v) = self.read_around(backend, &cand, i)?;
         let xi = [x[0], x[1], x[2], 0.0];
         let mut near: Vec<(f64, u32, Vec4)> = cand
             .iter()
@@ -518,6 +637,7 @@ impl NodeEditor {
 
         // Steps 2 and 3: rotation of the neighbourhood, shape vector, rest position.
         let members: Vec<(u32, Vec4)> = near.iter().map(|(_, j, p)| (*j, *p)).collect();
+        self.last_neighbours.clone_from(&members);
         let (c, c0, rot, q) = self.rigid_fit(&members);
         let x0: Vec4 = match placement {
             Placement::Offset(offset) => {
@@ -631,11 +751,15 @@ impl NodeEditor {
         // The slot's state (read with the candidates).
         undo.push(Undo::Slot {
             node: i as u32,
-            position: old_p[0],
-            velocity: old_v[0],
+            position: old_p,
+            velocity: old_v,
         });
-        backend.write(NodeField::Position, i, &[[x[0], x[1], x[2], self.inv_mass]])?;
-        backend.write(NodeField::Velocity, i, &[[v[0], v[1], v[2], 0.0]])?;
+        self.write_state(
+            backend,
+            i,
+            [x[0], x[1], x[2], self.inv_mass],
+            [v[0], v[1], v[2], 0.0],
+        )?;
         backend.set_n_active(i + 1)?;
         self.n_active = i + 1;
         self.log.push(Addition { undo, ..old });
@@ -645,6 +769,7 @@ impl NodeEditor {
     /// Removes the most recently added node, restoring every row it changed.
     pub fn remove_last(&mut self, backend: &mut dyn Backend) -> Result<u32, EditError> {
         let add = self.log.pop().ok_or(EditError::NothingToRemove)?;
+        self.last_neighbours.clear();
         let k = self.nb.k;
         let i = add.node as usize;
         backend.set_n_active(i)?;
@@ -676,8 +801,8 @@ impl NodeEditor {
                     position,
                     velocity,
                 } => {
-                    backend.write(NodeField::Position, *node as usize, &[*position])?;
-                    backend.write(NodeField::Velocity, *node as usize, &[*velocity])?;
+                    let (n, p, v) = (*node as usize, *position, *velocity);
+                    self.write_state(backend, n, p, v)?;
                 }
             }
         }
@@ -831,6 +956,16 @@ impl NodeEditor {
 }
 
 /// The position part of a node's `[x, y, z, w]`, in f64.
+/// `position` (world) as a read of [`NodeField::Position`] returns it after a write:
+/// stored in the backend's position frame, read back to the world's.
+fn stored_as_read(backend: &dyn Backend, position: Vec4) -> Vec4 {
+    let frame = backend.position_frame();
+    match frame.is_world() {
+        true => position,
+        false => frame.to_world(frame.to_frame(position)),
+    }
+}
+
 fn dvec3(p: Vec4) -> DVec3 {
     glam::Vec4::from_array(p).truncate().as_dvec3()
 }

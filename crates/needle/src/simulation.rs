@@ -663,9 +663,17 @@ impl Simulation {
     /// rest to the material point under it ([`Simulation::material_region`]).
     fn region_of_added(&mut self, index: u32, x: DVec3) -> Result<u16, SimError> {
         let nodes = self.mesh_neighbours(index);
-        let mut pos = vec![[0.0f32; 4]; nodes.len()];
-        self.backend
-            .read_nodes(NodeField::Position, &nodes, &mut pos)?;
+        // Its neighbours are among those the addition just read (one readback fewer on
+        // a GPU).
+        let pos = match self.editor.last_neighbour_positions(&nodes) {
+            Some(pos) => pos,
+            None => {
+                let mut pos = vec![[0.0f32; 4]; nodes.len()];
+                self.backend
+                    .read_nodes(NodeField::Position, &nodes, &mut pos)?;
+                pos
+            }
+        };
         Ok(self.material_region(x, &nodes, &pos).map_or(0, |(_, r)| r))
     }
 

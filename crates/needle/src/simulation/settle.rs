@@ -44,6 +44,22 @@ impl Simulation {
         now: &Needle,
         pos: &[DVec3],
     ) -> Result<(), SimulationError> {
+        // Nothing moves the tissue during a settle (force evaluations and the placed
+        // nodes' own writes), so the editor need not read the neighbourhood again at
+        // every re-placement (on a GPU, one blocking readback each).
+        self.editor.begin_memo();
+        let result = self.settle_placed(first, now, pos);
+        self.editor.end_memo();
+        result
+    }
+
+    /// [`Simulation::settle`], with the editor's memo kept.
+    fn settle_placed(
+        &mut self,
+        first: usize,
+        now: &Needle,
+        pos: &[DVec3],
+    ) -> Result<(), SimulationError> {
         let m = self.state.nodes.len();
         if first >= m || !self.sheathed() {
             return Ok(());
@@ -237,6 +253,8 @@ impl Simulation {
             self.backend
                 .write(NodeField::Position, index as usize, &q)
                 .map_err(|e| self.edit(e.into()))?;
+            self.editor
+                .note_position(self.backend.as_ref(), index, q[0]);
         }
         Ok(())
     }
