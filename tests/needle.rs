@@ -562,8 +562,11 @@ fn summary(counts: &[(u64, bool)]) -> String {
 /// what it wrote in the last one (`Simulation` module docs, "One readback"). Before, a
 /// step read back twice (four times before issue 20). Steps that add, remove or refresh
 /// needle nodes read more (a node edit settles the new nodes in equilibrium: a few force
-/// evaluations, each with the re-placed nodes' candidates and slots read back), and so
-/// does the divergence guard every `check_every` steps.
+/// evaluations, each read back; the neighbourhood is read once per settle, not at every
+/// re-placement), and so does the divergence guard every `check_every` steps. Here a
+/// Tip refresh reads back 9 times and a node addition 16 (they were 15 and 35 before
+/// the editor kept its reads during a settle and an addition's reads were merged): at
+/// most 18 per step is asserted, the room of one more force evaluation in a settle.
 #[test]
 fn an_inserted_needle_step_reads_back_once() {
     // The insert-extract scene with 2,000 nodes instead of 639: the far-side test's reach
@@ -601,7 +604,9 @@ fn an_inserted_needle_step_reads_back_once() {
         // nodes as it was) every few dozen steps reads more.
         let over = moving.iter().filter(|c| c.0 > 1).count();
         let mean = moving.iter().map(|c| c.0).sum::<u64>() as f64 / moving.len() as f64;
-        assert!(over <= 12 && mean <= 1.8, "{name}: {}", summary(&moving));
+        assert!(over <= 12 && mean <= 1.5, "{name}: {}", summary(&moving));
+        let most = moving.iter().map(|c| c.0).max().unwrap_or(0);
+        assert!(most <= 18, "{name}: an edit step read {most} times");
     }
 }
 
