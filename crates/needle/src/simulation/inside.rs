@@ -376,7 +376,8 @@ impl Simulation {
         // The refreshed Tip node keeps the load it carried: its friction state and, with
         // the per-length model, the tissue's velocity and the material at the tip, so the
         // load ahead of the tip is carried on, not released.
-        let (state, v, placement) = self.tip_load(st.known.take().as_deref(), st.tip)?;
+        let known = st.known.take();
+        let (state, v, placement) = self.tip_load(known.as_deref(), st.tip)?;
         st.edited = true;
         let v = if st.per_length { v } else { v_tip };
         let sd = seeds(&self.state.nodes);
@@ -394,6 +395,14 @@ impl Simulation {
         self.state.tip_placed = st.tip.to_array();
         st.pos.pop();
         st.pos.push(st.tip);
+        // The nodes below keep the velocities read at the start of the step, and the new
+        // Tip node has the one just written (the settle re-places it with the same), so
+        // `constrain` need not read them back (one readback fewer a refresh on a GPU).
+        st.known = known.map(|mut k| {
+            k.pop();
+            k.push(vec4(v, 0.0));
+            k
+        });
         Ok(())
     }
 
