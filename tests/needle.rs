@@ -567,7 +567,7 @@ fn summary(counts: &[(u64, bool)]) -> String {
 /// Tip refresh reads back 8 times and a node addition 16 (they were 15 and 35 before
 /// the editor kept its reads during a settle, an addition's reads were merged and a
 /// refresh kept the velocities it knows): at most 18 per step is asserted, the room of
-/// one more force evaluation in a settle.
+/// two more force evaluations in a settle.
 #[test]
 fn an_inserted_needle_step_reads_back_once() {
     // The insert-extract scene with 2,000 nodes instead of 639: the far-side test's reach

@@ -465,6 +465,8 @@ impl GpuBackend {
     /// or readback ([`crate::scatter`]).
     fn write_per_slot(&self, target: Binding, k: usize, elements: Range<usize>, data: &[u8]) {
         let first = elements.start;
+        // Pairs of `target` from before this call (this call's own are other words).
+        let mut waiting = self.lock_scatter().pending_for(target);
         let word = |at: usize| {
             let at = at * layout::ELEMENT;
             u32::from_ne_bytes(data[at..at + layout::ELEMENT].try_into().expect("4 bytes"))
@@ -473,8 +475,9 @@ impl GpuBackend {
             let offset = run.offset(self.capacity);
             let len = run.nodes.len();
             if len >= DIRECT_RUN {
-                if self.lock_scatter().pending_for(target) {
+                if waiting {
                     self.flush_scatter();
+                    waiting = false;
                 }
                 let words: Vec<u32> = (0..len).map(|n| word(run.source(n, k, first))).collect();
                 self.ctx.queue.write_buffer(

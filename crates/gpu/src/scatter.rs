@@ -9,11 +9,13 @@
 //! real GPU"): 5 ms of the host's time in those calls and about 7 ms more in the readbacks
 //! that submitted them, a 13 ms step in a haptic loop that has 1 ms. Here each word
 //! becomes an `(at, bits)` pair; the pairs wait on the host until the next submit or
-//! readback ([`Scatter::record`] at the start of its command buffer), so every edit of a
-//! step reaches the device in one upload and one dispatch per edited array, before any
-//! kernel or copy that could read it. Runs of at least [`DIRECT_RUN`] consecutive nodes
-//! (uploads, checkpoints) still go through `write_buffer`, after the pending pairs
-//! ([`crate::GpuBackend`]'s `write_per_slot`), so the order of writes is kept.
+//! readback ([`Scatter::record`] at the start of its command buffer), so the edits made
+//! between two submits or readbacks reach the device in one upload and one dispatch per
+//! edited array (more for a batch beyond one dispatch's workgroups), before any kernel
+//! or copy that could read them. Runs of at least [`DIRECT_RUN`] consecutive nodes
+//! (checkpoint restores of a capacity of at least that many nodes) still go through
+//! `write_buffer`, after the pending pairs of that array ([`crate::GpuBackend`]'s
+//! `write_per_slot`), so the order of writes is kept.
 
 use crate::buffers::{Binding, Buffers};
 use crate::kernels::{Kernel, KernelSpec, WORKGROUP};
@@ -29,7 +31,7 @@ pub(crate) const SCATTER: KernelSpec = KernelSpec {
 
 /// Consecutive nodes from which a per-slot run is written directly: each of its K pieces
 /// is then at least 256 bytes, one copy each, and a whole-array write (a checkpoint's
-/// restore) does not go through host pairs.
+/// restore, with a capacity of at least this many nodes) does not go through host pairs.
 pub(crate) const DIRECT_RUN: usize = 64;
 
 /// Pending pairs from which a write submits them first, so that the host's batch (8 bytes

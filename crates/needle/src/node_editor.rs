@@ -129,7 +129,8 @@ pub struct NodeEditor {
     /// ([`NodeEditor::begin_memo`]).
     memo: Option<Memo>,
     /// The last addition's neighbours and their positions as it read them
-    /// ([`NodeEditor::last_neighbour_positions`]).
+    /// ([`NodeEditor::last_neighbour_positions`]; cleared by the next addition or
+    /// removal, valid only until anything moves the tissue).
     last_neighbours: Vec<(u32, Vec4)>,
 }
 
@@ -190,8 +191,9 @@ impl NodeEditor {
 
     /// From now until [`NodeEditor::end_memo`], positions and velocities the editor reads
     /// or writes are remembered and not read again: for a sequence of removals and
-    /// additions during which nothing else writes a position or velocity and no step is
-    /// taken (other writes go through [`NodeEditor::note_position`]). A value written is
+    /// additions during which nothing else writes a velocity, no step is taken, and a
+    /// position written outside the editor is told with [`NodeEditor::note_position`]
+    /// (there is no such call for velocities: none may be written). A value written is
     /// remembered as a read would return it (through the backend's position frame, as
     /// [`Backend::write`] stores it).
     pub(crate) fn begin_memo(&mut self) {
@@ -204,8 +206,9 @@ impl NodeEditor {
     }
 
     /// The positions of `nodes` as the last addition read them, if it read all of them
-    /// (they are among the K nearest it chose from): the caller that asks before
-    /// anything moves the tissue gets what a read would give, without one.
+    /// (they are among the K nearest it chose from): the caller that asks right after
+    /// the addition, before anything moves the tissue, gets what a read would give,
+    /// without one.
     pub(crate) fn last_neighbour_positions(&self, nodes: &[u32]) -> Option<Vec<Vec4>> {
         nodes
             .iter()
@@ -603,6 +606,7 @@ impl NodeEditor {
                 return Err(EditError::NonFinite(r.map(|c| c as f32)));
             }
         }
+        self.last_neighbours.clear();
         let i = self.n_active;
         if i >= self.capacity() {
             return Err(EditError::Capacity {
@@ -955,9 +959,9 @@ impl NodeEditor {
     }
 }
 
-/// The position part of a node's `[x, y, z, w]`, in f64.
 /// `position` (world) as a read of [`NodeField::Position`] returns it after a write:
-/// stored in the backend's position frame, read back to the world's.
+/// stored in the backend's position frame, read back to the world's (a backend that
+/// stores positions in another frame must say so through `Backend::position_frame`).
 fn stored_as_read(backend: &dyn Backend, position: Vec4) -> Vec4 {
     let frame = backend.position_frame();
     match frame.is_world() {
@@ -966,6 +970,7 @@ fn stored_as_read(backend: &dyn Backend, position: Vec4) -> Vec4 {
     }
 }
 
+/// The position part of a node's `[x, y, z, w]`, in f64.
 fn dvec3(p: Vec4) -> DVec3 {
     glam::Vec4::from_array(p).truncate().as_dvec3()
 }
