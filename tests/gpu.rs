@@ -284,6 +284,44 @@ fn per_slot_arrays_round_trip_at_any_element_range() {
     push_and_compare_forces(&mut c, &mut g, 11, 0, 0.002, "per-slot arrays");
 }
 
+/// A shape array stored as the host has it (point based animation's rest positions) takes
+/// short writes, which the GPU backend batches until the next submit, a write of more
+/// than 1 KiB over them (written directly, after what waits), and short writes after
+/// it: it reads back exactly what the CPU backend holds after the same writes.
+#[test]
+fn short_and_long_shape_writes_land_in_order() {
+    let scene = cube_scene(MODELS[4].1, 639, 0.0, [1.0; 3]);
+    let tissue = Tissue::from_scene(&scene).unwrap();
+    let Some(mut g) = gpu(&tissue) else { return };
+    let mut c = backend(&scene, Threading::Single);
+    let array = ShapeArray::RestPosition;
+    // (first float, floats): rest positions are 4 floats per node.
+    let writes = [
+        (9 * 4, 4),
+        (30 * 4 + 1, 2),
+        (0, 100 * 4),
+        (9 * 4 + 2, 1),
+        (9 * 4 + 2, 1),
+    ];
+    for (w, (first, count)) in writes.into_iter().enumerate() {
+        let values: Vec<f32> = (0..count)
+            .map(|e| 0.01 + 1e-4 * e as f32 + 1e-6 * w as f32)
+            .collect();
+        for b in [&mut c as &mut dyn Backend, &mut g] {
+            b.write_shape_bytes(array, first * 4, bytemuck::cast_slice(&values))
+                .unwrap();
+        }
+    }
+    let total = 200 * 16;
+    let (mut on_cpu, mut on_gpu) = (vec![0u8; total], vec![0u8; total]);
+    c.read_shape_bytes(array, 0, &mut on_cpu).unwrap();
+    g.read_shape_bytes(array, 0, &mut on_gpu).unwrap();
+    assert!(
+        on_cpu == on_gpu,
+        "rest positions differ after the same writes"
+    );
+}
+
 /// Moves node `node` by `by` m along `axis` on both backends, evaluates the forces and
 /// checks they agree within 1e-5 of the largest (f32 round-off of the force kernels).
 fn push_and_compare_forces(

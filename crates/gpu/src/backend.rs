@@ -9,7 +9,7 @@ use crate::kernels::{self, Pass, WORKGROUP};
 use crate::layout;
 use crate::params::Params;
 use crate::profile::{map_read, KernelTime, Profiler};
-use crate::scatter::{Scatter, DIRECT_RUN};
+use crate::scatter::{Scatter, DIRECT_RUN, DIRECT_WORDS};
 use needlesim_core::backend::{check_many, check_range, check_rows, check_shape_write};
 use needlesim_core::frame::PositionFrame;
 use needlesim_core::models::mls::ViscoRow;
@@ -498,6 +498,39 @@ impl GpuBackend {
         }
     }
 
+    /// Writes `data` at byte `offset` of an array stored as the host has it (`target`,
+    /// `buffer`): a few words wait as pairs with the per-slot edits ([`crate::scatter`]:
+    /// a node edit writes a few words of each shape array per touched node, over a
+    /// hundred small copies per Tip refresh); more go through `write_buffer` after what
+    /// waits for that array.
+    fn write_words(&self, target: Binding, buffer: &wgpu::Buffer, offset: usize, data: &[u8]) {
+        let words = data.len() / layout::ELEMENT;
+        let aligned =
+            offset.is_multiple_of(layout::ELEMENT) && data.len().is_multiple_of(layout::ELEMENT);
+        if aligned && words < DIRECT_WORDS {
+            if self.lock_scatter().full() {
+                self.flush_scatter();
+            }
+            let at = offset / layout::ELEMENT;
+            self.lock_scatter().push(
+                target,
+                data.chunks_exact(layout::ELEMENT)
+                    .enumerate()
+                    .map(|(n, w)| {
+                        [
+                            (at + n) as u32,
+                            u32::from_ne_bytes(w.try_into().expect("4 bytes")),
+                        ]
+                    }),
+            );
+        } else {
+            if self.lock_scatter().pending_for(target) {
+                self.flush_scatter();
+            }
+            self.ctx.queue.write_buffer(buffer, offset as u64, data);
+        }
+    }
+
     fn lock_scatter(&self) -> std::sync::MutexGuard<'_, Scatter> {
         // A panic while the lock was held left at worst some edits pending.
         self.scatter.lock().unwrap_or_else(|e| e.into_inner())
@@ -825,7 +858,7 @@ impl Backend for GpuBackend {
                 let elements = first..first + data.len() / layout::ELEMENT;
                 self.write_per_slot(Binding::Model(array), k, elements, data);
             } else if !data.is_empty() {
-                self.ctx.queue.write_buffer(buffer, offset as u64, data);
+                self.write_words(Binding::Model(array), buffer, offset, data);
             }
         }
         Ok(())

@@ -2,6 +2,9 @@
 //! and the viscoelastic state, [`crate::layout`]), batched into one upload and one
 //! dispatch (`shaders/scatter.wgsl`).
 //!
+//! The other shape arrays' small writes (a few words per node an edit touches) wait with
+//! them, so an edit's writes are not hundreds of separate copies either.
+//!
 //! A node's row is contiguous on the host and scattered on the device: slot `s` of node `i`
 //! at `s C + i`. Written with `queue.write_buffer`, one row is K copies of 4 bytes per
 //! array, and a Tip refresh, which rewrites about a hundred rows, issued over 5,000 of
@@ -33,6 +36,10 @@ pub(crate) const SCATTER: KernelSpec = KernelSpec {
 /// is then at least 256 bytes, one copy each, and a whole-array write (a checkpoint's
 /// restore, with a capacity of at least this many nodes) does not go through host pairs.
 pub(crate) const DIRECT_RUN: usize = 64;
+
+/// Words from which a write of an array stored as the host has it (a shape array that
+/// is not per slot) goes through `write_buffer` rather than as pairs: 1 KiB.
+pub(crate) const DIRECT_WORDS: usize = 256;
 
 /// Pending pairs from which a write submits them first, so that the host's batch (8 bytes
 /// per word) stays bounded.
