@@ -471,6 +471,8 @@ impl GpuBackend {
             let at = at * layout::ELEMENT;
             u32::from_ne_bytes(data[at..at + layout::ELEMENT].try_into().expect("4 bytes"))
         };
+        // This call's short runs (other words than its direct ones), queued at once.
+        let mut short: Vec<[u32; 2]> = Vec::new();
         for run in layout::runs(elements, k) {
             let offset = run.offset(self.capacity);
             let len = run.nodes.len();
@@ -486,15 +488,15 @@ impl GpuBackend {
                     bytemuck::cast_slice(&words),
                 );
             } else {
-                if self.lock_scatter().full() {
-                    self.flush_scatter();
-                }
                 let at = offset as usize / layout::ELEMENT;
-                self.lock_scatter().push(
-                    target,
-                    (0..len).map(|n| [(at + n) as u32, word(run.source(n, k, first))]),
-                );
+                short.extend((0..len).map(|n| [(at + n) as u32, word(run.source(n, k, first))]));
             }
+        }
+        if !short.is_empty() {
+            if self.lock_scatter().full() {
+                self.flush_scatter();
+            }
+            self.lock_scatter().push(target, short.into_iter());
         }
     }
 
