@@ -564,10 +564,10 @@ fn summary(counts: &[(u64, bool)]) -> String {
 /// needle nodes read more (a node edit settles the new nodes in equilibrium: a few force
 /// evaluations, each read back; the neighbourhood is read once per settle, not at every
 /// re-placement), and so does the divergence guard every `check_every` steps. Here a
-/// Tip refresh reads back 8 times and a node addition 16 (they were 15 and 35 before
-/// the editor kept its reads during a settle, an addition's reads were merged and a
-/// refresh kept the velocities it knows): at most 18 per step is asserted, the room of
-/// two more force evaluations in a settle.
+/// Tip refresh reads back 7 times and a node addition 15 (they were 15 and 35 before
+/// the editor kept its reads during a settle, the reads of an addition and of the Tip's
+/// removal were merged and a refresh kept the velocities it knows): at most 18 per step
+/// is asserted, the room of three more force evaluations in a settle.
 #[test]
 fn an_inserted_needle_step_reads_back_once() {
     // The insert-extract scene with 2,000 nodes instead of 639: the far-side test's reach

@@ -33,7 +33,7 @@ use needlesim_core::models::mueller2016_rotation::extract_rotation;
 use needlesim_core::models::{ShapeArray, ShapeInfo};
 use needlesim_core::neighbours::{kernel_length, kernel_weight, Neighbours};
 use needlesim_core::scene::WeightKernel;
-use needlesim_core::{Backend, NodeField, SimError, Tissue};
+use needlesim_core::{Backend, NodeField, NodeSelection, SimError, Tissue};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -397,7 +397,25 @@ impl NodeEditor {
         since: usize,
         nodes: &[u32],
     ) -> Result<Vec<Vec4>, EditError> {
+        self.forces_before_with(backend, since, nodes, &[], &mut [])
+    }
+
+    /// [`NodeEditor::forces_before`], with `extra` (fields that a force evaluation does
+    /// not change: positions, velocities) read into `extra_outs` in the same readback
+    /// where the additions from `since` on are none (else just before).
+    pub(crate) fn forces_before_with(
+        &self,
+        backend: &mut dyn Backend,
+        since: usize,
+        nodes: &[u32],
+        extra: &[(NodeField, NodeSelection<'_>)],
+        extra_outs: &mut [&mut [Vec4]],
+    ) -> Result<Vec<Vec4>, EditError> {
         let adds = self.log.get(since..).unwrap_or(&[]);
+        if !adds.is_empty() && !extra.is_empty() {
+            backend.read_many(extra, extra_outs)?;
+        }
+        let merge = adds.is_empty();
         let mut f = vec![[0.0f32; 4]; nodes.len()];
         let mut evaluate = |backend: &mut dyn Backend| -> Result<(), SimError> {
             if let Some(first) = adds.first() {
@@ -405,7 +423,14 @@ impl NodeEditor {
                 self.put_back(backend, adds, false)?;
             }
             backend.compute_forces_on(nodes);
-            backend.read_nodes(NodeField::Force, nodes, &mut f)
+            if !merge || extra.is_empty() {
+                return backend.read_nodes(NodeField::Force, nodes, &mut f);
+            }
+            let mut requests = vec![(NodeField::Force, nodes.into())];
+            requests.extend(extra.iter().cloned());
+            let mut outs: Vec<&mut [Vec4]> = vec![&mut f];
+            outs.extend(extra_outs.iter_mut().map(|o| &mut **o));
+            backend.read_many(&requests, &mut outs)
         };
         let done = evaluate(backend);
         // The current rows and slots go back whatever failed above (the first error is

@@ -6,7 +6,7 @@ use super::Simulation;
 use crate::handover::{Handover, HANDOVER_TIME};
 use crate::node_editor::EditError;
 use crate::SimulationError;
-use needlesim_core::{NodeField, SimError};
+use needlesim_core::{NodeField, NodeSelection, SimError, Vec4};
 
 impl Simulation {
     /// Notes that the step edits the node stack now: the editor's log is at its lowest
@@ -19,9 +19,24 @@ impl Simulation {
     /// Before removing the last added node: the elastic forces of the nodes the removal
     /// can change, for those not yet recorded this step (per-length model only).
     pub(super) fn capture_before_removal(&mut self) -> Result<(), EditError> {
+        self.capture_before_removal_with(&[], &mut [])
+    }
+
+    /// [`Simulation::capture_before_removal`], reading `extra` (positions or velocities,
+    /// which it leaves as they are) into `outs` with the forces: one readback on a GPU
+    /// where there were two. With nothing to record, `extra` is read alone.
+    pub(super) fn capture_before_removal_with(
+        &mut self,
+        extra: &[(NodeField, NodeSelection<'_>)],
+        outs: &mut [&mut [Vec4]],
+    ) -> Result<(), EditError> {
         self.mark_edit();
+        let read_alone = |sim: &mut Self, outs: &mut [&mut [Vec4]]| match extra.is_empty() {
+            true => Ok(()),
+            false => sim.backend.read_many(extra, outs).map_err(EditError::from),
+        };
         if !self.sheathed() {
-            return Ok(());
+            return read_alone(self, outs);
         }
         // This step's additions (the node about to go may be one of them: a Tip node
         // refreshed and then replaced by the Exit node) are put back for the evaluation,
@@ -37,11 +52,11 @@ impl Simulation {
             .filter(|&j| (j as usize) < kept && recorded.binary_search_by_key(&j, |e| e.0).is_err())
             .collect();
         if fresh.is_empty() {
-            return Ok(());
+            return read_alone(self, outs);
         }
-        let f = self
-            .editor
-            .forces_before(self.backend.as_mut(), since, &fresh)?;
+        let f =
+            self.editor
+                .forces_before_with(self.backend.as_mut(), since, &fresh, extra, outs)?;
         let before = &mut self.state.before_edits;
         before.extend(fresh.into_iter().zip(f));
         before.sort_unstable_by_key(|e| e.0);

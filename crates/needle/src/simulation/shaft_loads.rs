@@ -89,7 +89,9 @@ impl Simulation {
     /// longer than half a node spacing (a needle jerked through the tissue), the map is
     /// not trusted so far: the replacement strains the tissue around it as the old one
     /// did (its elastic offset). The paper's refresh places it strain-free.
-    /// `known`: the needle nodes' velocities, if read since the last edit.
+    /// `known`: the needle nodes' velocities, if read since the last edit. Called just
+    /// before the Tip node's removal: with the per-length model it also records the
+    /// forces the removal's handover needs ([`Simulation::capture_before_removal`]).
     pub(super) fn tip_load(
         &mut self,
         known: Option<&[Vec4]>,
@@ -108,15 +110,16 @@ impl Simulation {
         nodes.push(index);
         let mut pos = vec![[0.0f32; 4]; nodes.len()];
         let mut vel = vec![[0.0f32; 4]; nodes.len()];
-        self.backend
-            .read_many(
-                &[
-                    (NodeField::Position, nodes.as_slice().into()),
-                    (NodeField::Velocity, nodes.as_slice().into()),
-                ],
-                &mut [&mut pos, &mut vel],
-            )
-            .map_err(|e| self.edit(e.into()))?;
+        // The Tip node's removal follows: the forces it records before it come in the
+        // same read (one readback on a GPU, where there were two).
+        self.capture_before_removal_with(
+            &[
+                (NodeField::Position, nodes.as_slice().into()),
+                (NodeField::Velocity, nodes.as_slice().into()),
+            ],
+            &mut [&mut pos, &mut vel],
+        )
+        .map_err(|e| self.edit(e))?;
         // The replacement moves with the tissue around it (the mean of its mesh
         // neighbours), not with whatever speed the old node had along the shaft.
         vel.pop();
