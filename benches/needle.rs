@@ -13,14 +13,22 @@
 //!   another tissue model, [`needle_material`]). Before the held benches, the
 //!   CPU runs print the needle step while the needle advances against the tissue alone
 //!   ([`advancing_overhead`]), and the GPU run prints the advancing step's latency
-//!   distribution ([`advancing_latency`]). `NEEDLESIM_BENCH_BACKENDS` (`cpu-1,cpu-all,gpu`)
+//!   distribution and its slowest step's time per backend call ([`advancing_latency`]). `NEEDLESIM_BENCH_BACKENDS` (`cpu-1,cpu-all,gpu`)
 //!   picks backends.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use needlesim::core::backend::NodeSelection;
+use needlesim::core::frame::PositionFrame;
+use needlesim::core::models::ShapeArray;
 use needlesim::core::scene::{Axis, NodeSet, ShapeMatchingForces, ShapeMatchingParams};
+use needlesim::core::Vec4;
 use needlesim::gpu::GpuBackend;
 use needlesim::needle::{NodeEditor, PunctureState, Simulation};
-use needlesim::{CpuBackend, Material, Scene, Threading, Tissue};
+use needlesim::{Backend, CpuBackend, Material, NodeField, Scene, SimError, Threading, Tissue};
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 mod common;
 use common::{cube, MODELS};
@@ -292,20 +300,31 @@ fn advancing_latency(sim: &mut Simulation, scene: &Scene) {
     let start = sim.checkpoint().unwrap();
     let p = Simulation::prepare(scene).unwrap();
     let g = GpuBackend::new(&p.tissue).unwrap();
-    let mut sim = p.resume(Box::new(g), start).unwrap();
+    let calls = Calls::default();
+    let timed = Timed {
+        inner: g,
+        calls: calls.clone(),
+    };
+    let mut sim = p.resume(Box::new(timed), start).unwrap();
     sim.set_record(false);
     let before = sim.readbacks();
     let nodes_before = sim.needle_nodes().len();
     let mut times = Vec::with_capacity(ADVANCE_STEPS);
+    let mut slowest: (f64, BTreeMap<&'static str, (u64, f64)>) = (0.0, BTreeMap::new());
     for _ in 0..ADVANCE_STEPS {
         let n = sim.needle().expect("the scene has a needle");
         let (b, d) = (n.base(), n.direction());
         let base = [0, 1, 2].map(|k| b[k] + step_len * d[k]);
-        let t = std::time::Instant::now();
+        calls.lock().unwrap().clear();
+        let t = Instant::now();
         sim.set_pose(base, d).unwrap();
         sim.step().unwrap();
         let _ = sim.needle_force();
-        times.push(t.elapsed().as_secs_f64() * 1e6);
+        let us = t.elapsed().as_secs_f64() * 1e6;
+        times.push(us);
+        if us > slowest.0 {
+            slowest = (us, calls.lock().unwrap().clone());
+        }
     }
     let per_step = (sim.readbacks() - before) as f64 / ADVANCE_STEPS as f64;
     let mean = times.iter().sum::<f64>() / times.len() as f64;
@@ -321,6 +340,113 @@ fn advancing_latency(sim: &mut Simulation, scene: &Scene) {
         nodes_before,
         sim.needle_nodes().len()
     );
+    let in_calls: f64 = slowest.1.values().map(|c| c.1).sum();
+    eprintln!(
+        "gpu: the slowest advancing step, {:.0} us: {:.0} us outside the backend's calls",
+        slowest.0,
+        slowest.0 - in_calls
+    );
+    for (name, (count, us)) in &slowest.1 {
+        eprintln!("    {name:20} {count:4} calls {us:8.0} us");
+    }
+}
+
+/// Per backend call: calls and microseconds, over one step ([`Timed`]).
+type Calls = Arc<Mutex<BTreeMap<&'static str, (u64, f64)>>>;
+
+/// A backend that times every call of the one it wraps (wall time; a GPU call that waits,
+/// a readback, carries the work queued before it), for the breakdown of the slowest
+/// advancing step.
+struct Timed {
+    inner: GpuBackend,
+    calls: Calls,
+}
+
+impl Timed {
+    fn time<R>(&mut self, name: &'static str, f: impl FnOnce(&mut GpuBackend) -> R) -> R {
+        let t = Instant::now();
+        let r = f(&mut self.inner);
+        let mut calls = self.calls.lock().unwrap();
+        let c = calls.entry(name).or_insert((0, 0.0));
+        c.0 += 1;
+        c.1 += t.elapsed().as_secs_f64() * 1e6;
+        r
+    }
+}
+
+impl Backend for Timed {
+    fn name(&self) -> String {
+        self.inner.name()
+    }
+    fn capacity(&self) -> usize {
+        self.inner.capacity()
+    }
+    fn n_active(&self) -> usize {
+        self.inner.n_active()
+    }
+    fn set_n_active(&mut self, n: usize) -> Result<(), SimError> {
+        self.time("set_n_active", |b| b.set_n_active(n))
+    }
+    fn compute_forces(&mut self) {
+        self.time("compute_forces", |b| b.compute_forces())
+    }
+    fn compute_forces_on(&mut self, nodes: &[u32]) {
+        self.time("compute_forces_on", |b| b.compute_forces_on(nodes))
+    }
+    fn integrate(&mut self) {
+        self.time("integrate", |b| b.integrate())
+    }
+    fn step(&mut self, n: u64) {
+        self.time("step", |b| b.step(n))
+    }
+    fn position_frame(&self) -> PositionFrame {
+        self.inner.position_frame()
+    }
+    fn steps_taken(&self) -> u64 {
+        self.inner.steps_taken()
+    }
+    fn set_steps_taken(&mut self, steps: u64) {
+        self.inner.set_steps_taken(steps)
+    }
+    fn finish(&mut self) {
+        self.time("finish", |b| b.finish())
+    }
+    fn read(&mut self, f: NodeField, r: Range<usize>, out: &mut [Vec4]) -> Result<(), SimError> {
+        self.time("read", |b| b.read(f, r, out))
+    }
+    fn read_nodes(&mut self, f: NodeField, n: &[u32], out: &mut [Vec4]) -> Result<(), SimError> {
+        self.time("read_nodes", |b| b.read_nodes(f, n, out))
+    }
+    fn read_many(
+        &mut self,
+        requests: &[(NodeField, NodeSelection<'_>)],
+        outs: &mut [&mut [Vec4]],
+    ) -> Result<(), SimError> {
+        self.time("read_many", |b| b.read_many(requests, outs))
+    }
+    fn readbacks(&self) -> u64 {
+        self.inner.readbacks()
+    }
+    fn write(&mut self, f: NodeField, first: usize, data: &[Vec4]) -> Result<(), SimError> {
+        self.time("write", |b| b.write(f, first, data))
+    }
+    fn write_neighbour_rows(&mut self, first: usize, i: &[u32], w: &[f32]) -> Result<(), SimError> {
+        self.time("write_neighbour_rows", |b| {
+            b.write_neighbour_rows(first, i, w)
+        })
+    }
+    fn write_shape_bytes(&mut self, a: ShapeArray, at: usize, d: &[u8]) -> Result<(), SimError> {
+        self.time("write_shape_bytes", |b| b.write_shape_bytes(a, at, d))
+    }
+    fn read_shape_bytes(&mut self, a: ShapeArray, at: usize, o: &mut [u8]) -> Result<(), SimError> {
+        self.time("read_shape_bytes", |b| b.read_shape_bytes(a, at, o))
+    }
+    fn guard(&mut self, max_speed: f64) -> Result<(), SimError> {
+        self.time("guard", |b| b.guard(max_speed))
+    }
+    fn check_finite(&mut self) -> Result<(), SimError> {
+        self.time("check_finite", |b| b.check_finite())
+    }
 }
 
 criterion_group!(benches, add_remove, step_inserted);

@@ -114,7 +114,9 @@ pub trait Backend: Send {
     /// The frame the backend stores positions in ([`crate::frame`]): the world's, or for
     /// a body far from the origin, one translated to it. Reads and writes of
     /// [`NodeField::Position`] and [`NodeField::PositionRemainder`] are in world
-    /// coordinates whatever it is. The default is the world frame.
+    /// coordinates whatever it is. The default is the world frame: a backend that wraps
+    /// another must forward it (the needle's node editor rounds the positions it writes
+    /// through it to know what a read will return, `needlesim-needle`'s `NodeEditor`).
     fn position_frame(&self) -> PositionFrame {
         PositionFrame::WORLD
     }
