@@ -300,13 +300,7 @@ impl GpuBackend {
     }
 
     fn submit(&mut self, steps: u64, forces: bool, integrate: bool) {
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("steps"),
-            });
-        self.record_scatter(&mut encoder);
+        let mut encoder = self.encoder("steps");
         self.record(&mut encoder, steps, forces, integrate);
         self.ctx.queue.submit([encoder.finish()]);
     }
@@ -493,10 +487,7 @@ impl GpuBackend {
             }
         }
         if !short.is_empty() {
-            if self.lock_scatter().full() {
-                self.flush_scatter();
-            }
-            self.lock_scatter().push(target, short.into_iter());
+            self.queue_pairs(target, short.into_iter());
         }
     }
 
@@ -510,11 +501,8 @@ impl GpuBackend {
         let aligned =
             offset.is_multiple_of(layout::ELEMENT) && data.len().is_multiple_of(layout::ELEMENT);
         if aligned && words < DIRECT_WORDS {
-            if self.lock_scatter().full() {
-                self.flush_scatter();
-            }
             let at = offset / layout::ELEMENT;
-            self.lock_scatter().push(
+            self.queue_pairs(
                 target,
                 data.chunks_exact(layout::ELEMENT)
                     .enumerate()
@@ -538,26 +526,36 @@ impl GpuBackend {
         self.scatter.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Records the waiting row edits at the start of `encoder` ([`crate::scatter`]).
-    fn record_scatter(&self, encoder: &mut wgpu::CommandEncoder) {
+    /// A command encoder that starts with the waiting edits ([`crate::scatter`]): every
+    /// submit and readback goes through one, so nothing recorded after can see the
+    /// arrays without them.
+    fn encoder(&self, label: &'static str) -> wgpu::CommandEncoder {
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
         self.lock_scatter().record(
             &self.ctx.device,
             &self.ctx.queue,
             &self.buffers,
-            encoder,
+            &mut encoder,
             self.max_groups_x,
         );
+        encoder
+    }
+
+    /// Queues `pairs` of `target` ([`crate::scatter`]), after submitting what waits when
+    /// the batch is full.
+    fn queue_pairs(&self, target: Binding, pairs: impl Iterator<Item = [u32; 2]>) {
+        if self.lock_scatter().full() {
+            self.flush_scatter();
+        }
+        self.lock_scatter().push(target, pairs);
     }
 
     /// Submits the waiting row edits on their own.
     fn flush_scatter(&self) {
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("scatter"),
-            });
-        self.record_scatter(&mut encoder);
+        let encoder = self.encoder("scatter");
         self.ctx.queue.submit([encoder.finish()]);
     }
 
@@ -590,13 +588,7 @@ impl GpuBackend {
         if bytes == 0 {
             return Ok(());
         }
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("read"),
-            });
-        self.record_scatter(&mut encoder);
+        let mut encoder = self.encoder("read");
         let mut at = 0u64;
         for (buffer, offset, out) in pieces.iter() {
             let len = out.len() as u64;

@@ -238,19 +238,9 @@ impl NodeEditor {
         slot: usize,
     ) -> Result<(Vec<Vec4>, Vec4, Vec4), EditError> {
         let slot_u = slot as u32;
-        let Some(memo) = self.memo.as_mut() else {
-            let mut pos = vec![[0.0f32; 4]; nodes.len()];
-            let (mut p, mut v) = ([[0.0f32; 4]], [[0.0f32; 4]]);
-            backend.read_many(
-                &[
-                    (NodeField::Position, nodes.into()),
-                    (NodeField::Position, (slot..slot + 1).into()),
-                    (NodeField::Velocity, (slot..slot + 1).into()),
-                ],
-                &mut [&mut pos, &mut p, &mut v],
-            )?;
-            return Ok((pos, p[0], v[0]));
-        };
+        // Without a memo, one kept for this call alone: everything is read, in one go.
+        let mut scratch = Memo::default();
+        let memo = self.memo.as_mut().unwrap_or(&mut scratch);
         let mut missing: Vec<u32> = nodes
             .iter()
             .copied()
