@@ -153,8 +153,11 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 /// - a shape matching frame, four lanes over every slot: cluster sums 43 per slot, lane
 ///   sums 51, the scaled matrix 49, and at most 130 per rotation iteration (2);
 ///   per-node forces add the goal 36; cluster forces 51 per live slot and 36;
-/// - the continuum models' moving least squares: gradient 37 per live slot and 45, the
-///   packed first pass 74, the gather 44 per live slot and 18; the stress: linear 34,
+/// - the continuum models' moving least squares: gradient 37 per live slot and 45, with
+///   the hourglass control's quadratic fit 42 more per live slot (six monomials, their
+///   outer product with the displacement difference) and 441 (`B2 - B C^T` 108, `H =
+///   (..) M^-1` 216, `H C` 108, `J - H C` 9), the packed first pass 92, the gather 110
+///   per live slot (44, and 66 for the quadratic term) and 18; the stress: linear 34,
 ///   point based (Green strain, `F S`) 124, neo-Hookean 79, co-rotated (`R` from its
 ///   quaternion, `R^T F - I`, linear, `R sigma`) 154 plus a shape matching frame; a
 ///   viscoelastic Debunne adds the push of the relaxed stress 54 and 6 + 30 per Prony
@@ -164,7 +167,7 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
     const INTEGRATE: f64 = 36.0;
     let frame = 43.0 * k + 51.0 + 49.0 + 130.0 * 2.0;
-    let mls = |stress: f64| 37.0 * live + 45.0 + stress + 74.0 + 44.0 * live + 18.0;
+    let mls = |stress: f64| 79.0 * live + 486.0 + stress + 92.0 + 110.0 * live + 18.0;
     INTEGRATE
         + match label {
             "msm" => 31.0 * k + 9.0,

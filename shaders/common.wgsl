@@ -42,6 +42,11 @@ fn slot(i: u32, s: u32) -> u32 {
     return s * params.slot_stride + i;
 }
 
+// Floats per node of the continuum models' moment row and vec4 per node of their first
+// pass (mls.rs::MOMENT_ROW, FIRST_PASS_ROW / 4).
+const MOMENT_ROW: u32 = 48u;
+const FIRST_PASS_VEC4: u32 = 7u;
+
 // Row-major 3x3 matrices are stored as mat3x3 whose columns hold the rows (so m[r][c] reads
 // row r, column c as in the Rust code); products are written out explicitly.
 fn mat_vec(m: mat3x3<f32>, v: vec3<f32>) -> vec3<f32> {

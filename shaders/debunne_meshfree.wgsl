@@ -145,9 +145,10 @@ fn add_viscous(i: u32, eta: f32, r: mat3x3<f32>) {
     let mean = (d[0].x + d[1].y + d[2].z) / 3.0;
     let s = mat_mul(r, 2.0 * eta * (d - mean * identity()));
     let q = rest[i].w * mat_mul(s, a_inv(i));
-    first_pass[3u * i] += vec4<f32>(q[0], q[1].x);
-    first_pass[3u * i + 1u] += vec4<f32>(q[1].y, q[1].z, q[2].x, q[2].y);
-    first_pass[3u * i + 2u] += vec4<f32>(q[2].z, 0.0, 0.0, 0.0);
+    let b = FIRST_PASS_VEC4 * i;
+    first_pass[b] += vec4<f32>(q[0], q[1].x);
+    first_pass[b + 1u] += vec4<f32>(q[1].y, q[1].z, q[2].x, q[2].y);
+    first_pass[b + 2u] += vec4<f32>(q[2].z, 0.0, 0.0, 0.0);
 }
 
 @compute @workgroup_size(64)

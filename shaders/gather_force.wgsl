@@ -1,6 +1,8 @@
 // Second pass of the continuum models (mls.rs::gather_force): the force on node k from
 // every node's packed first-pass result,
-// f_k = sum_i w_ki (Q_i d0_ki + (c_i + c_k) (d_ki - d0_ki)) + Q_k sum_i w_ki d0_ki.
+// f_k = sum_i w_ki (Q_i d0_ki + (c_i + c_k) (d_ki - d0_ki) + (c_i H_i - c_k H_k) s(d0_ki))
+//       + Q_k sum_i w_ki d0_ki,
+// s the quadratic monomials of the rest offset.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -10,16 +12,37 @@
 @group(0) @binding(5) var<storage, read> first_pass: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> forces: array<vec4<f32>>;
 
+// Written out as fields, not an array (see the loop below for why).
 struct Packed {
     q: mat3x3<f32>,
     c: f32,
+    h0: vec3<f32>,
+    h1: vec3<f32>,
+    h2: vec3<f32>,
+    h3: vec3<f32>,
+    h4: vec3<f32>,
+    h5: vec3<f32>,
 }
 
 fn packed(i: u32) -> Packed {
-    let a = first_pass[3u * i];
-    let b = first_pass[3u * i + 1u];
-    let e = first_pass[3u * i + 2u];
-    return Packed(mat3x3<f32>(a.xyz, vec3<f32>(a.w, b.x, b.y), vec3<f32>(b.z, b.w, e.x)), e.y);
+    let o = FIRST_PASS_VEC4 * i;
+    let a = first_pass[o];
+    let b = first_pass[o + 1u];
+    let e = first_pass[o + 2u];
+    let f = first_pass[o + 3u];
+    let g = first_pass[o + 4u];
+    let h = first_pass[o + 5u];
+    let l = first_pass[o + 6u];
+    return Packed(
+        mat3x3<f32>(a.xyz, vec3<f32>(a.w, b.x, b.y), vec3<f32>(b.z, b.w, e.x)),
+        e.y,
+        vec3<f32>(e.z, e.w, f.x),
+        f.yzw,
+        g.xyz,
+        vec3<f32>(g.w, h.x, h.y),
+        vec3<f32>(h.z, h.w, l.x),
+        l.yzw,
+    );
 }
 
 // A neighbour's part of the sum: its weight, its index (k itself for an empty slot, so
@@ -38,11 +61,14 @@ fn neighbour(k: u32, s: u32) -> Neighbour {
 }
 
 // One neighbour's term of f_k, zero for an empty slot.
-fn term(w: f32, q: Packed, d0: vec3<f32>, d: vec3<f32>, ck: f32) -> vec3<f32> {
+fn term(w: f32, q: Packed, d0: vec3<f32>, d: vec3<f32>, own: Packed) -> vec3<f32> {
     if w == 0.0 {
         return vec3<f32>(0.0);
     }
-    return w * mat_vec(q.q, d0) + w * (q.c + ck) * (d - d0);
+    let h = (q.h0 - own.h0) * (d0.x * d0.x) + (q.h1 - own.h1) * (d0.y * d0.y)
+        + (q.h2 - own.h2) * (d0.z * d0.z) + (q.h3 - own.h3) * (d0.x * d0.y)
+        + (q.h4 - own.h4) * (d0.y * d0.z) + (q.h5 - own.h5) * (d0.z * d0.x);
+    return w * mat_vec(q.q, d0) + w * (q.c + own.c) * (d - d0) + w * h;
 }
 
 // One neighbour's term of sum_i w_ki d0_ki, zero for an empty slot.
@@ -85,13 +111,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let qb = packed(nb.i);
         let qe = packed(ne.i);
         let qg = packed(ng.i);
-        f += term(na.w, qa, d0a, da, own.c);
+        f += term(na.w, qa, d0a, da, own);
         m += moment(na.w, d0a);
-        f += term(nb.w, qb, d0b, db, own.c);
+        f += term(nb.w, qb, d0b, db, own);
         m += moment(nb.w, d0b);
-        f += term(ne.w, qe, d0e, de, own.c);
+        f += term(ne.w, qe, d0e, de, own);
         m += moment(ne.w, d0e);
-        f += term(ng.w, qg, d0g, dg, own.c);
+        f += term(ng.w, qg, d0g, dg, own);
         m += moment(ng.w, d0g);
     }
     f += mat_vec(own.q, m);

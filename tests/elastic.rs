@@ -95,8 +95,8 @@ fn stretched_bar(material: Material, eps: f64) -> BarResult {
             d(a).total_cmp(&d(c))
         })
         .unwrap();
-    let ainv = mls::inverse_moment(centre, &rest4, &t.neighbours);
-    let (j, _) = mls::displacement_gradient(centre, &x, &rest4, &t.neighbours, &ainv);
+    let ainv = mls::moment_row(centre, &rest4, &t.neighbours);
+    let j = mls::displacement_gradient(centre, &x, &rest4, &t.neighbours, &ainv).j;
     let (lambda, mu) = lame(E, NU);
     let s = point_based::green_stress(&j, lambda as f32, mu as f32);
     BarResult {

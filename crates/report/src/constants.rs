@@ -36,12 +36,6 @@ pub const COLUMN_HEIGHT: f64 = 0.1;
 /// Gravity of the column case, m/s^2: a uniaxial bar's top would sink `rho g H^2 / (2E)`
 /// = 0.1 mm, a strain of at most 0.2% at the clamp (linear theory holds).
 pub const COLUMN_GRAVITY: f64 = 0.2;
-/// Hourglass control of the continuum models in the sphere and column cases. Resampled surface nodes
-/// sit at irregular places among the lattice nodes, and their non-affine modes need more
-/// than the default 0.1: at 2,955 nodes DEB's strain was 15.6% too large with 0.1 and
-/// 1.6% with 4 (463 / 9,031 nodes: 50.6% / 10.7% with 0.1, 5.0% / 1.3% with 4; PBA
-/// the same within 0.2%). Uniform strain itself is not resisted by hourglass control.
-pub const RESAMPLED_HOURGLASS: f64 = 4.0;
 /// Pressure on the sphere case's ball, Pa: a strain of `-p (1 - 2 nu) / E = -0.1%`, where
 /// the geometrically nonlinear models stay within about 0.1% of the linear answer.
 pub const SPHERE_PRESSURE: f64 = 25.0;

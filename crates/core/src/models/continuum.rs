@@ -5,7 +5,9 @@
 //! animation and the neo-Hookean model are such laws; the Debunne model adds a co-rotation
 //! frame and keeps its own shape.
 
-use super::mls::{ContinuumArrays, ContinuumConstants, NodeVolumes, StressSplit};
+use super::mls::{
+    ContinuumArrays, ContinuumConstants, FirstPassRow, MomentRow, NodeVolumes, StressSplit,
+};
 use super::traits::{BuildContext, ForceInput, ModelState, ShapeArray, ShapeRow, TissueModel};
 use crate::math::Vec4;
 use crate::neighbours::Neighbours;
@@ -23,10 +25,10 @@ pub trait ContinuumLaw: TissueModel + Send + Sync {
         positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         volume: f32,
         c: &ContinuumConstants,
-    ) -> [f32; 12];
+    ) -> FirstPassRow;
 
     /// Node `i`'s stress split for the viscoelastic update ([`StressSplit`]): the
     /// elastic stress of [`ContinuumLaw::law_first_pass`] written as `push S + extra`.
@@ -35,7 +37,7 @@ pub trait ContinuumLaw: TissueModel + Send + Sync {
         positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         c: &ContinuumConstants,
     ) -> StressSplit;
 }

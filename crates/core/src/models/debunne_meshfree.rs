@@ -70,8 +70,8 @@
 
 use super::local_shape_matching::{cluster_frame, rest_positions, shape_vector, shape_vectors};
 use super::mls::{
-    default_hourglass, pack_first_pass, unpack, ContinuumArrays, ContinuumConstants, NodeVolumes,
-    StressSplit,
+    default_hourglass, pack_first_pass, unpack, ContinuumArrays, ContinuumConstants, FirstPassRow,
+    MomentRow, NodeVolumes, StressSplit,
 };
 use super::mueller2016_rotation::default_iterations;
 use super::viscoelastic::{visco_bytes, Prony};
@@ -100,8 +100,9 @@ pub struct DebunneParams {
     /// Quaternion iterations per step of the rotation extraction when `corotated`.
     #[serde(default = "crate::models::mueller2016_rotation::default_iterations")]
     pub rotation_iterations: u32,
-    /// Hourglass control alpha (dimensionless): stiffness of the non-affine part of a
-    /// neighbourhood's motion, in units of `mu V_i / sum_j w_ij |x_ij|^2`.
+    /// Hourglass control alpha (dimensionless, default 16): stiffness of the part of a
+    /// neighbourhood's motion that a quadratic field does not explain, in units of
+    /// `mu V_i / sum_j w_ij |x_ij|^2` ([`super::mls`]).
     #[serde(default = "crate::models::mls::default_hourglass")]
     pub hourglass: f64,
     /// The volume `V_i` that weights each node's strain energy: `cell` (default),
@@ -125,7 +126,7 @@ fn is_zero(v: &f64) -> bool {
 
 impl DebunneParams {
     /// `model = "debunne_meshfree"` with Young's modulus in Pa and the Poisson ratio, the
-    /// other keys at their defaults (not co-rotated, hourglass 0.1, cell volumes).
+    /// other keys at their defaults (not co-rotated, hourglass 16, cell volumes).
     pub const fn new(young_modulus: f64, poisson_ratio: f64) -> DebunneParams {
         DebunneParams {
             young_modulus,
@@ -207,7 +208,9 @@ impl TissueModel for DebunneParams {
 
     /// Rest position, inverse moment and first pass (and the frame when co-rotated).
     fn shape_bytes_per_node(&self, _k: f64) -> f64 {
-        100.0 + if self.corotated { 32.0 } else { 0.0 } + visco_bytes(&self.viscoelastic)
+        super::mls::CONTINUUM_BYTES_PER_NODE
+            + if self.corotated { 32.0 } else { 0.0 }
+            + visco_bytes(&self.viscoelastic)
     }
 
     fn prony(&self) -> Prony {
@@ -433,7 +436,8 @@ impl Shape {
         let threads = threads.with_subset(ring.as_deref());
         let coefficients = prony.coefficients(dt as f64);
         let split = |i: usize, r: Option<&Mat3>, lambda: f32, mu: f32| {
-            let (j, trace) = super::mls::displacement_gradient(i, pos, rest, nb, &a_inv[i]);
+            let g = super::mls::displacement_gradient(i, pos, rest, nb, &a_inv[i]);
+            let j = g.j;
             let (s0, push) = match r {
                 None => (linear_stress(&j, lambda, mu), Mat3::IDENTITY),
                 Some(r) => {
@@ -448,8 +452,7 @@ impl Shape {
                 s0,
                 push,
                 extra: Mat3::ZERO,
-                j,
-                trace,
+                gradient: g,
             }
         };
         match &mut self.corotation {
@@ -515,11 +518,11 @@ impl Viscous<'_> {
     #[inline]
     fn add(
         &self,
-        q: &mut [f32; 12],
+        q: &mut FirstPassRow,
         i: usize,
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         rotation: Option<&Mat3>,
     ) {
         let eta = self.node_material.map_or(self.eta, |m| m[i][3]);
@@ -544,7 +547,7 @@ pub fn velocity_gradient(
     velocities: &[Vec4],
     rest: &[Vec4],
     nb: &Neighbours,
-    inverse_moment: &[f32; 9],
+    inverse_moment: &MomentRow,
 ) -> Mat3 {
     let (vi, x0i) = (xyz(velocities[i]), xyz(rest[i]));
     let mut b = Mat3::ZERO;
@@ -587,14 +590,15 @@ pub fn first_pass(
     positions: &[Vec4],
     rest: &[Vec4],
     nb: &Neighbours,
-    inverse_moment: &[f32; 9],
+    inverse_moment: &MomentRow,
     volume: f32,
     lambda: f32,
     mu: f32,
     hourglass: f32,
     rotation: Option<&Mat3>,
-) -> [f32; 12] {
-    let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+) -> FirstPassRow {
+    let g = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+    let j = g.j;
     let p = match rotation {
         None => linear_stress(&j, lambda, mu),
         Some(r) => {
@@ -604,5 +608,5 @@ pub fn first_pass(
             *r * linear_stress(&h, lambda, mu)
         }
     };
-    pack_first_pass(&p, &j, trace, inverse_moment, volume, hourglass)
+    pack_first_pass(&p, &g, inverse_moment, volume, hourglass)
 }

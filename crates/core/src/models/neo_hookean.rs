@@ -32,7 +32,8 @@
 use super::continuum::{ContinuumLaw, ContinuumShape};
 use super::mls::StressSplit;
 use super::mls::{
-    default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, NodeVolumes,
+    default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, FirstPassRow,
+    MomentRow, NodeVolumes,
 };
 use super::traits::{BuildContext, ModelInfo, TissueModel};
 use super::viscoelastic::{visco_bytes, Prony};
@@ -53,7 +54,7 @@ pub struct NeoHookeanParams {
     pub young_modulus: f64,
     /// Poisson ratio nu, in (-1, 0.5) (the small-strain ratio).
     pub poisson_ratio: f64,
-    /// Hourglass control alpha, as for the other continuum models (default 0.1).
+    /// Hourglass control alpha, as for the other continuum models (default 16).
     #[serde(default = "default_hourglass")]
     pub hourglass: f64,
     /// The volume `V_i` that weights each node's strain energy (see [`NodeVolumes`]).
@@ -68,7 +69,7 @@ pub struct NeoHookeanParams {
 
 impl NeoHookeanParams {
     /// `model = "neo_hookean"` with Young's modulus in Pa and the Poisson ratio, the other
-    /// keys at their defaults (hourglass 0.1, cell volumes).
+    /// keys at their defaults (hourglass 16, cell volumes).
     pub const fn new(young_modulus: f64, poisson_ratio: f64) -> NeoHookeanParams {
         NeoHookeanParams {
             young_modulus,
@@ -138,13 +139,14 @@ pub fn first_pass(
     positions: &[Vec4],
     rest: &[Vec4],
     nb: &Neighbours,
-    inverse_moment: &[f32; 9],
+    inverse_moment: &MomentRow,
     volume: f32,
     c: &ContinuumConstants,
-) -> [f32; 12] {
-    let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+) -> FirstPassRow {
+    let g = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+    let j = g.j;
     let p = stress(&(j + Mat3::IDENTITY), c.lambda, c.mu);
-    pack_first_pass(&p, &j, trace, inverse_moment, volume, c.hourglass)
+    pack_first_pass(&p, &g, inverse_moment, volume, c.hourglass)
 }
 
 impl TissueModel for NeoHookeanParams {
@@ -170,7 +172,7 @@ impl TissueModel for NeoHookeanParams {
 
     /// Rest position, inverse moment and first pass.
     fn shape_bytes_per_node(&self, _k: f64) -> f64 {
-        100.0 + visco_bytes(&self.viscoelastic)
+        super::mls::CONTINUUM_BYTES_PER_NODE + visco_bytes(&self.viscoelastic)
     }
 
     fn prony(&self) -> Prony {
@@ -199,10 +201,10 @@ impl ContinuumLaw for NeoHookeanParams {
         positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         volume: f32,
         c: &ContinuumConstants,
-    ) -> [f32; 12] {
+    ) -> FirstPassRow {
         first_pass(i, positions, rest, nb, inverse_moment, volume, c)
     }
 
@@ -212,17 +214,17 @@ impl ContinuumLaw for NeoHookeanParams {
         positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         c: &ContinuumConstants,
     ) -> StressSplit {
-        let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+        let g = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+        let j = g.j;
         let f = j + Mat3::IDENTITY;
         StressSplit {
             s0: f.inverse() * stress(&f, c.lambda, c.mu),
             push: f,
             extra: Mat3::ZERO,
-            j,
-            trace,
+            gradient: g,
         }
     }
 }

@@ -22,8 +22,8 @@
 //! with cell volumes.
 use super::continuum::{ContinuumLaw, ContinuumShape};
 use super::mls::{
-    default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, NodeVolumes,
-    StressSplit,
+    default_hourglass, pack_first_pass, validate_continuum, ContinuumConstants, FirstPassRow,
+    MomentRow, NodeVolumes, StressSplit,
 };
 use super::traits::{BuildContext, ModelInfo, TissueModel};
 use super::viscoelastic::{visco_bytes, Prony};
@@ -42,13 +42,16 @@ pub struct PointBasedParams {
     /// Poisson ratio nu, in (-1, 0.5).
     pub poisson_ratio: f64,
     /// Stiffness k_v in Pa of the volume-conserving energy `k_v/2 V (det F - 1)^2`
-    /// (Mueller et al. 2004, section 4.3); 0 (the default) switches it off.
+    /// (Mueller et al. 2004, section 4.3); 0 (the default) switches it off. The Green
+    /// strain has no energy for an inverted neighbourhood, so large deformations need it
+    /// (`scenes/cube_sag_pba.toml`).
     #[serde(default)]
     pub volume_stiffness: f64,
-    /// Hourglass control alpha, as for the Debunne model. Default 0.1: it removes the
-    /// zig-zag modes without changing the patch test. 0 is the original method, whose
-    /// zig-zag modes cost no energy: a 343-node cube twisted 90 degrees and released then
-    /// kept 2.2% of its twist (the report's extreme cases, K = 18; 0.01% with 0.1).
+    /// Hourglass control alpha, as for the Debunne model (default 16): it removes the
+    /// zig-zag modes without changing the patch test or bending. 0 is the original
+    /// method, whose zig-zag modes cost no energy: a 343-node cube twisted 90 degrees and
+    /// released then kept 2.2% of its twist (the report's extreme cases, K = 18; 0.01%
+    /// with the first-order control at 0.1).
     #[serde(default = "crate::models::mls::default_hourglass")]
     pub hourglass: f64,
     /// The volume `V_i` that weights each node's strain energy: `cell` (default),
@@ -64,7 +67,7 @@ pub struct PointBasedParams {
 
 impl PointBasedParams {
     /// `model = "point_based"` with Young's modulus in Pa and the Poisson ratio, the other
-    /// keys at their defaults (no volume term, hourglass 0.1, cell volumes).
+    /// keys at their defaults (no volume term, hourglass 16, cell volumes).
     pub const fn new(young_modulus: f64, poisson_ratio: f64) -> PointBasedParams {
         PointBasedParams {
             young_modulus,
@@ -138,7 +141,7 @@ impl TissueModel for PointBasedParams {
 
     /// Rest position, inverse moment and first pass (and the viscoelastic state).
     fn shape_bytes_per_node(&self, _k: f64) -> f64 {
-        100.0 + visco_bytes(&self.viscoelastic)
+        super::mls::CONTINUUM_BYTES_PER_NODE + visco_bytes(&self.viscoelastic)
     }
 
     fn prony(&self) -> Prony {
@@ -167,10 +170,10 @@ impl ContinuumLaw for PointBasedParams {
         positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         volume: f32,
         c: &ContinuumConstants,
-    ) -> [f32; 12] {
+    ) -> FirstPassRow {
         first_pass(i, positions, rest, nb, inverse_moment, volume, c)
     }
 
@@ -180,17 +183,17 @@ impl ContinuumLaw for PointBasedParams {
         positions: &[Vec4],
         rest: &[Vec4],
         nb: &Neighbours,
-        inverse_moment: &[f32; 9],
+        inverse_moment: &MomentRow,
         c: &ContinuumConstants,
     ) -> StressSplit {
-        let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+        let g = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+        let j = g.j;
         let f = deformation_gradient(&j);
         StressSplit {
             s0: green_stress(&j, c.lambda, c.mu),
             push: f,
             extra: volume_term(&f, c.volume_stiffness),
-            j,
-            trace,
+            gradient: g,
         }
     }
 }
@@ -230,11 +233,12 @@ pub fn first_pass(
     positions: &[Vec4],
     rest: &[Vec4],
     nb: &Neighbours,
-    inverse_moment: &[f32; 9],
+    inverse_moment: &MomentRow,
     volume: f32,
     c: &ContinuumConstants,
-) -> [f32; 12] {
-    let (j, trace) = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+) -> FirstPassRow {
+    let g = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
+    let j = g.j;
     let f = deformation_gradient(&j);
     let mut p = f * green_stress(&j, c.lambda, c.mu);
     if c.volume_stiffness > 0.0 {
@@ -245,5 +249,5 @@ pub fn first_pass(
         let s = c.volume_stiffness * (det - 1.0);
         p += Mat3::from_cols(cof[0], cof[1], cof[2]).transpose() * s;
     }
-    pack_first_pass(&p, &j, trace, inverse_moment, volume, c.hourglass)
+    pack_first_pass(&p, &g, inverse_moment, volume, c.hourglass)
 }

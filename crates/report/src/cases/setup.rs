@@ -62,17 +62,7 @@ pub(super) fn setup(case: CaseId, model: ModelId, spec: &RunSpec) -> Result<Setu
         CaseId::Column => ([CUBE; 3], COLUMN_RADIUS / n as f64),
         _ => ([CUBE; 3], CUBE / (n - 1) as f64),
     };
-    let mut material = model.material(YOUNG, h);
-    if matches!(case, CaseId::Sphere | CaseId::Column)
-        && matches!(
-            model,
-            ModelId::Deb | ModelId::DebCorotated | ModelId::Pba | ModelId::NeoHookean
-        )
-    {
-        material = material
-            .with_key("hourglass", RESAMPLED_HOURGLASS)
-            .map_err(|e| ReportError::Scene(e.to_string()))?;
-    }
+    let material = model.material(YOUNG, h);
     let floor = model.damping_floor(YOUNG, h);
     // Fixed below a quarter spacing along an axis: the lattice's first layer.
     let clamp = |axis| Some(NodeSet::below(axis, 0.25 * h));

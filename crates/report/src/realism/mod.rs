@@ -456,7 +456,6 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
                 mat.insert("model".into(), model.into());
                 mat.insert("young_modulus".into(), young.into());
                 mat.insert("poisson_ratio".into(), nu.into());
-                mat.insert("hourglass".into(), 4.0.into());
             }
             "local_shape_matching" => {
                 mat.insert("model".into(), "local_shape_matching".into());
