@@ -66,12 +66,14 @@
 //!   6.42 mm spacing) and the mass-spring lattice was far softer (15.9 mm). Now `R_p =
 //!   max(2 h, 1.3 R_c, min(4 h, R_f / 2))`, `R_f` the distance to the nearest mesh node
 //!   off the surface the needle presses (its sides and back; the entry patch in
-//!   `simulation/insertion.rs`): 7.94, 7.92 and 7.75 mm at 0.7, 1 and 1.4 times the
+//!   `simulation/insertion.rs`): 8.23, 8.08 and 7.99 mm at 0.7, 1 and 1.4 times the
 //!   liver's spacing (the coarsest has room for 3 of its 6.42 mm spacings only), against a
 //!   punch on a half-space 7.97 mm and scikit-fem on the block 7.96 mm
-//!   (`reference/needle_dent_fem.md`), and 7.92 / 8.00 / 7.87 / 9.36 / 9.18 mm for
+//!   (`reference/needle_dent_fem.md`), and 8.08 / 8.19 / 8.01 / 9.36 / 9.18 mm for
 //!   co-rotated Debunne, point based, neo-Hookean, shape matching and mass-spring (dev
-//!   machine, CPU, 2026-11-27). What it costs: the wider release at the puncture moves
+//!   machine, CPU, 2026-11-27, the continuum models with the default hourglass control;
+//!   7.94, 7.92, 7.75 and 7.92 / 8.00 / 7.87 mm with the first-order control at 4 before
+//!   it). What it costs: the wider release at the puncture moves
 //!   more tissue (the liver's largest buzz 2.33%, at the end of the audit's 20 ms after
 //!   the puncture, where it was 2.08% at a node removal; the layered scene's fell, 7.2%
 //!   instead of 8.8%). With `R_p = 4 h` alone, a block a few spacings wide had its whole entry
