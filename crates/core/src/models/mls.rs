@@ -49,7 +49,7 @@
 //!   | column (resampled) | 2,255 / 3,551 | 5.9 / 4.1% | 5.2 / 3.8% | 4.5 / 3.5% |
 //!   | liver needle scene: jumps, largest buzz | 4,913 | 9, 25.8% | 0, 3.2% | 0, 2.3% |
 //!
-//!   The default is 16 ([`default_hourglass`]): a needle loads single nodes, and one
+//!   The default is 16 (`default_hourglass`): a needle loads single nodes, and one
 //!   node pushed against its held neighbours then has 0.67 of the stiffness of a
 //!   trilinear FEM on the same lattice (0.26 with 4; `tests/models.rs`), which is what
 //!   the needle scenes' force needs (the row above; the first-order control with 4,
