@@ -186,7 +186,7 @@ fn shape_rows_written_on_either_backend_agree() {
             "pba",
             MODELS[4].1,
             ShapeArray::InverseMoment,
-            9 * 36,
+            9 * 4 * needlesim::core::models::mls::MOMENT_ROW,
             vec![1e4f32; 9],
         ),
     ] {

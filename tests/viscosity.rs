@@ -226,8 +226,11 @@ fn any_velocity_field_is_damped_alike_on_both_backends() {
 /// warm-start rotations settled on it), a velocity field that is `L` in the body's own
 /// frame (`v = R L R^T (x - c)`) dissipates what `L` does unrotated,
 /// `-2 eta |dev sym L|^2 V` within 1e-3 (f32 rotations; measured 3e-7), and a spin
-/// about any axis exerts no force (below 1e-5 of the shear's). Swapping `R` and `R^T`
-/// anywhere fails both. CPU and GPU.
+/// about any axis exerts no force (below 2e-4 of the shear's). Swapping `R` and `R^T`
+/// anywhere fails both. CPU and GPU. (The spin's floor is f32 rounding: the dashpot's
+/// stress is added to the first pass's `V P A^-1 - c Jf`, whose hourglass part on a body
+/// turned 30 degrees is large, `c (R - I)`, with the default alpha 16: measured 7.0e-5
+/// on the CPU; below 1e-5 with the old default 0.1.)
 #[test]
 fn a_rotated_body_is_damped_in_its_own_frame() {
     let tissue = cube(Material::DebunneMeshfree(
@@ -292,7 +295,7 @@ fn a_rotated_body_is_damped_in_its_own_frame() {
         eprintln!("{}: power error {err:.2e}, spin {ratio:.2e}", b.name());
         assert!(err < 1e-3, "{}: {power} W against {expected} W", b.name());
         assert!(
-            ratio < 1e-5,
+            ratio < 2e-4,
             "{}: a spin gives {ratio} of the shear force",
             b.name()
         );

@@ -74,9 +74,10 @@
 //!   machine, CPU, 2026-11-27, the continuum models with the default hourglass control;
 //!   7.94, 7.92, 7.75 and 7.92 / 8.00 / 7.87 mm with the first-order control at 4 before
 //!   it). What it costs: the wider release at the puncture moves
-//!   more tissue (the liver's largest buzz 2.33%, at the end of the audit's 20 ms after
-//!   the puncture, where it was 2.08% at a node removal; the layered scene's fell, 7.2%
-//!   instead of 8.8%). With `R_p = 4 h` alone, a block a few spacings wide had its whole entry
+//!   more tissue (with the first-order control: the liver's largest buzz 2.33%, at the
+//!   end of the audit's 20 ms after the puncture, where it was 2.08% at a node removal;
+//!   the layered scene's fell, 7.2% instead of 8.8%; with the default control, 2.28% and
+//!   5.55%). With `R_p = 4 h` alone, a block a few spacings wide had its whole entry
 //!   face as the patch, and the layered test block's GPU and CPU runs drifted apart by up
 //!   to 140 steps at node events: `R_f / 2` keeps such a block at two spacings. Only the
 //!   triangles facing the needle count (outward normal within 60 degrees of against it):

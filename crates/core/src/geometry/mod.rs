@@ -27,9 +27,9 @@ pub use memory::{check_memory, MemoryEstimate, MeshEstimate};
 /// The largest lattice a surface may be sampled on (the box limit of 50 million nodes).
 pub const MAX_LATTICE_POINTS: f64 = 5.0e7;
 
-/// Rough bytes per node of a simulation (state, 18 neighbours, model arrays), for the
-/// size estimate in errors.
-const BYTES_PER_NODE: f64 = 400.0;
+/// Rough bytes per node of a simulation (state, 18 neighbours, model arrays: a continuum
+/// model's are about 530), for the size estimate in errors.
+const BYTES_PER_NODE: f64 = 550.0;
 
 /// Rest positions of the nodes and the surface triangles over them.
 #[derive(Debug, Clone, PartialEq)]

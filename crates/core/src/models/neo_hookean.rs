@@ -18,7 +18,7 @@
 //! `F = I + J_i` is the moving-least-squares gradient of [`super::mls`], the energy
 //! `U = sum_i V_i W(F_i)` is integrated at the nodes with the node volumes `V_i`, and its
 //! exact gradient is gathered as for the other continuum models, with the same hourglass
-//! control (alpha, default 0.1). Rigid motions give zero force (W depends on `F^T F` and
+//! control (alpha, default 16). Rigid motions give zero force (W depends on `F^T F` and
 //! J only); the rest state gives exactly zero (`F = I` bitwise).
 //!
 //! Collapsed neighbourhoods: `ln J` has no value for `J <= 0`, which a node's neighbours
