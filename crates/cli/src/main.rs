@@ -67,6 +67,10 @@ enum Command {
         /// writes realism.md, realism.csv and its plots.
         #[arg(long)]
         realism: bool,
+        /// Leave the needle force realism section out of the full or reduced report (it
+        /// runs alone with --realism).
+        #[arg(long, conflicts_with = "realism")]
+        no_realism: bool,
         /// Backends to time every case on, comma separated [default: cpu,cpu-parallel and
         /// gpu when an adapter is found].
         #[arg(long, value_delimiter = ',', value_parser = backend_parser())]
@@ -333,6 +337,7 @@ fn run(cli: Cli) -> Result<()> {
             out,
             full,
             backends,
+            no_realism,
             ..
         } => {
             use needlesim_report::{run_report, ReportOptions, ReportSize};
@@ -353,6 +358,7 @@ fn run(cli: Cli) -> Result<()> {
                     ReportSize::Reduced
                 },
                 timing_backends,
+                realism: !no_realism,
             };
             // A closed stdout stops the report at the next line.
             let mut pipe: std::io::Result<()> = Ok(());

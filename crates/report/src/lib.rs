@@ -58,6 +58,10 @@ pub struct ReportOptions {
     /// Backends whose time per step is measured for every case run (the accuracy runs
     /// themselves use all CPU threads).
     pub timing_backends: Vec<BackendChoice>,
+    /// Whether to run the needle force realism section (about 24 min of the full size on
+    /// 2 cores); without it report.md points to `needlesim report --realism`, which runs
+    /// that section alone.
+    pub realism: bool,
 }
 
 /// Seconds per step of one case run on one backend.
@@ -84,8 +88,8 @@ pub struct ReportSummary {
     pub extreme: Vec<ExtremeResult>,
     /// The needle section.
     pub needle: needle::NeedleReport,
-    /// The needle force realism section.
-    pub realism: realism::Realism,
+    /// The needle force realism section, unless [`ReportOptions::realism`] left it out.
+    pub realism: Option<realism::Realism>,
     /// The elastic constants each model shows.
     pub effective: Vec<effective::Effective>,
     /// Wall time of the whole report.
@@ -265,7 +269,14 @@ pub fn run_report(
         }
     }
     let needle = needle::run_needle(options.size == ReportSize::Full, &mut progress)?;
-    let realism = realism::run_realism(options.size == ReportSize::Full, &mut progress)?;
+    let realism = if options.realism {
+        Some(realism::run_realism(
+            options.size == ReportSize::Full,
+            &mut progress,
+        )?)
+    } else {
+        None
+    };
     let effective = effective::run(13)?;
     for r in &effective {
         progress(&format!(
@@ -385,7 +396,9 @@ fn write_all(options: &ReportOptions, s: &ReportSummary) -> Result<(), ReportErr
     write(&out.join("effective.csv"), &effective::csv(&s.effective))?;
     plots(out, s)?;
     needle::write_needle(out, &s.needle).map_err(io(out))?;
-    realism::write_realism(out, &s.realism).map_err(io(out))?;
+    if let Some(r) = &s.realism {
+        realism::write_realism(out, r).map_err(io(out))?;
+    }
     write(&out.join("report.md"), &markdown(options, s))
 }
 
@@ -730,6 +743,13 @@ fn markdown(options: &ReportOptions, s: &ReportSummary) -> String {
     }
     effective::markdown(&mut md, &s.effective);
     needle::markdown(&mut md, &s.needle);
-    realism::markdown(&mut md, &s.realism);
+    match &s.realism {
+        Some(r) => realism::markdown(&mut md, r),
+        None => writeln!(
+            md,
+            "\n## Needle force realism\n\nNot part of this run: `needlesim report --realism` runs it alone (realism.md)."
+        )
+        .unwrap(),
+    }
     md
 }
