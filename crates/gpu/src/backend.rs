@@ -47,6 +47,9 @@ pub struct GpuBackend {
     frame: PositionFrame,
     /// Row edits waiting for the next submit or readback ([`crate::scatter`]).
     scatter: Mutex<Scatter>,
+    /// Where a local force evaluation keeps the warm-start rotations while it runs
+    /// ([`Backend::compute_forces_on`]; co-rotated Debunne only).
+    warm_starts: Option<wgpu::Buffer>,
 }
 
 /// The device buffers the tissue needs, by name: its arrays, with the viscoelastic
@@ -197,6 +200,15 @@ impl GpuBackend {
         let integrate = kernels::INTEGRATE_NODE.pass(device, &buffers);
         let end_step = crate::models::end_step_passes(device, &tissue.shape, &buffers);
         let scatter = Mutex::new(Scatter::new(device));
+        let warm_starts = tissue.shape.rotation_is_warm_start().then(|| {
+            let size = buffers.get(Binding::Model(ShapeArray::Rotation)).size();
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("warm_starts"),
+                size,
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        });
         let mut backend = GpuBackend {
             max_groups_x: device.limits().max_compute_workgroups_per_dimension,
             ctx,
@@ -211,6 +223,7 @@ impl GpuBackend {
             profiler: None,
             frame,
             scatter,
+            warm_starts,
         };
         backend
             .set_n_active(st.n_active)
@@ -656,6 +669,26 @@ impl Backend for GpuBackend {
 
     fn compute_forces(&mut self) {
         self.submit(1, true, false);
+    }
+
+    /// Every node, as the default; the warm-start rotations of co-rotated Debunne are
+    /// copied aside before and back after, on the device, so that the local evaluations a
+    /// node event makes leave them as the CPU backend's do (the trait's docs).
+    fn compute_forces_on(&mut self, nodes: &[u32]) {
+        let _ = nodes;
+        let Some(keep) = self.warm_starts.clone() else {
+            return self.compute_forces();
+        };
+        let rotation = self
+            .buffers
+            .get(Binding::Model(ShapeArray::Rotation))
+            .clone();
+        // The encoder records the row edits waiting (a new node's rotation) first.
+        let mut encoder = self.encoder("local forces");
+        encoder.copy_buffer_to_buffer(&rotation, 0, &keep, 0, keep.size());
+        self.record(&mut encoder, 1, true, false);
+        encoder.copy_buffer_to_buffer(&keep, 0, &rotation, 0, keep.size());
+        self.ctx.queue.submit([encoder.finish()]);
     }
 
     fn integrate(&mut self) {

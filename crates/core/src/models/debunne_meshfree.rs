@@ -356,6 +356,9 @@ impl ModelState for Shape {
         let (rest, a_inv) = (&rest_position[..], &inverse_moment[..]);
         // A local evaluation's gather reads the first pass of its nodes' neighbours.
         let ring = threads.one_ring(nb, n);
+        // A local evaluation uses the rotations it refines but keeps the warm starts
+        // (`Corotation::rotation`) as they were, as the GPU backend's does.
+        let keep_warm_starts = threads.subset.is_some();
         let threads = threads.with_subset(ring.as_deref());
         match &mut self.corotation {
             None => threads.map_nodes(&mut first[..n], |i| {
@@ -376,7 +379,9 @@ impl ModelState for Shape {
                 threads.for_each_node(&mut first[..n], &mut rotation[..n], |i, q, rot| {
                     let (_, r) =
                         cluster_frame(i, pos, rest, sv[i], nb, iters, Quat::from_array(*rot));
-                    *rot = r.to_array();
+                    if !keep_warm_starts {
+                        *rot = r.to_array();
+                    }
                     let [lambda, mu, hg, _] = constants(i);
                     let r = Mat3::from_quat(r);
                     *q = first_pass(
@@ -433,6 +438,7 @@ impl Shape {
         } = &mut self.continuum;
         let (rest, a_inv, prev) = (&rest_position[..], &inverse_moment[..], &visco[..]);
         let ring = threads.one_ring(nb, n);
+        let keep_warm_starts = threads.subset.is_some();
         let threads = threads.with_subset(ring.as_deref());
         let coefficients = prony.coefficients(dt as f64);
         let split = |i: usize, r: Option<&Mat3>, lambda: f32, mu: f32| {
@@ -483,7 +489,9 @@ impl Shape {
                     |i, out, rot, next| {
                         let (_, r) =
                             cluster_frame(i, pos, rest, sv[i], nb, iters, Quat::from_array(*rot));
-                        *rot = r.to_array();
+                        if !keep_warm_starts {
+                            *rot = r.to_array();
+                        }
                         let [lambda, mu, hg, _] = constants(i);
                         let r = Mat3::from_quat(r);
                         *out = ContinuumArrays::visco_first_pass(

@@ -389,6 +389,14 @@ impl ShapeInfo {
         self.bytes().iter().any(|(n, _)| *n == ShapeArray::Rotation)
     }
 
+    /// Whether the `rotation` array holds warm starts only (co-rotated Debunne: each node's
+    /// first pass refines its own and uses it at once), so that a local force evaluation
+    /// ([`crate::Backend::compute_forces_on`]) may leave it as it was and give the same
+    /// forces; shape matching's rotations are read by a later pass and are not.
+    pub fn rotation_is_warm_start(&self) -> bool {
+        matches!(&self.model, ModelShape::DebunneMeshfree(s) if s.corotation.is_some())
+    }
+
     /// The arrays this model allocated, with their sizes.
     pub fn arrays(&self) -> Vec<ArrayInfo> {
         let mut out: Vec<ArrayInfo> = self
