@@ -48,16 +48,32 @@
 //! still gets its handover done (it runs on time, not on travel).
 //!
 //! Which edits: the steps that add or remove a Surface, Shaft or Exit node (one event per
-//! node spacing of travel), and the Tip node's last removal on the way out (below). A
-//! step that only refreshes the Tip node, lifts it to edit the shaft behind it, or drops
-//! one the tissue carried ahead of the tip is not handed over: the Tip node is refreshed
-//! every tenth of a spacing, a few steps apart at speed, and a handover lasting 40 ms
-//! would sum the differences of tens of refreshes
-//! into a standing force on the tissue at the tip. Measured on the layered GPU/CPU test
-//! of `tests/layers.rs` (20 mm/s, a refresh every 4 to 8 steps): with refreshes handed
-//! over the tip's membrane element ran 0.1 N apart between two runs whose events differed
-//! by one step, and the middle membrane gave 650 steps apart; without, the runs keep the
-//! same events at every step. The refreshed Tip node itself is placed in equilibrium.
+//! node spacing of travel), the Tip node's refreshes, and the Tip node's last removal on
+//! the way out and its return (below). A step that lifts the Tip node to edit the shaft
+//! behind it is a Shaft event; one that drops a Tip node the tissue carried ahead of the
+//! tip is not handed over. A refresh (every tenth of a spacing of cut, a few steps apart
+//! at speed) hands over within the time the tip takes at its speed to cut the distance
+//! to the next one, at most `T` ([`refresh_handover_time`]): one refresh's fade is
+//! mostly over before the next starts, so refreshes do not pile up into a standing force
+//! on the tissue at the tip (a 40 ms handover of every refresh would sum tens of them).
+//! No event cuts short what is left of a running handover: the new one lasts at least
+//! as long. Until 2026-11-27 refreshes were not handed over: the refreshed Tip node was
+//! placed in equilibrium, but the change of its neighbours' rows came in one step, and
+//! on `liver_insertion.toml` a refresh moved the shaft's friction by up to 50 mN within
+//! 3 ms (a tenth of the force there) and rang, the run's largest buzz (2.29% of the local
+//! force). Handed over, the largest high-pass excursion in the 20 ms after a refresh fell
+//! from 11 mN (median over the refreshes; 25 mN the largest) to 3.9 mN (4.3). With
+//! `force_audit.py` (CPU, dev machine, 2026-11-27) the largest buzz outside the 20 ms
+//! after a puncture went from 2.29% to 1.59% on the liver, 5.56% to 3.27% on
+//! `layered_liver_biopsy.toml` and 4.68% to 3.27% on `needle_insert_extract.toml`
+//! (phantom 3.47% to 3.80%, both its puncture's release at the audit's 20 ms); no jump
+//! appeared. Handing refreshes over first made the GPU and CPU runs of the layered test
+//! (`tests/layers.rs`) drift three steps apart at their events: each handover evaluates
+//! forces locally twice more, and the GPU backend, which evaluates every node, refined
+//! co-rotated Debunne's warm-start rotations at every such evaluation; local
+//! evaluations now leave those as they were on every backend
+//! (`needlesim_core::Backend::compute_forces_on`), and the two runs keep the same events
+//! at every step.
 //! The Tip node taken off for good while the needle is pulled back (behind the crack
 //! front; it is put on again only when the needle advances) is handed over like a Shaft
 //! node: it happens once per withdrawal, and without it the Shaft node behind it jerked
@@ -80,8 +96,8 @@
 //! included: whether a Shaft edit follows in the same step is not known yet), one more
 //! with the additions put back when the step added nodes, and one after the edits; on
 //! the GPU each is a full force pass and a readback (its `compute_forces_on` evaluates
-//! every node). These extra passes also refine the co-rotated models' warm-start
-//! rotations once more, as the settle's evaluations already do. While a handover runs,
+//! every node, and leaves co-rotated Debunne's warm-start rotations as they were, as
+//! the CPU's does). A Tip refresh pays the two after its removal too. While a handover runs,
 //! the forces of its nodes (a few dozen) are read with the needle nodes' forces in the
 //! step's existing readback and written back; only after the needle has left the tissue
 //! does it read back on its own (`tests/needle.rs` counts the readbacks per step).
@@ -94,6 +110,19 @@ use serde::{Deserialize, Serialize};
 /// How long a node edit's change of the elastic forces takes to hand over, s (module
 /// docs).
 pub const HANDOVER_TIME: f64 = 0.04;
+
+/// How long a step that only refreshed the Tip node hands its change over, s: the time
+/// the tip takes at its speed (`advance` m in a step of `dt` s) to cut the `refresh`
+/// distance to the next refresh, at most [`HANDOVER_TIME`] and at least one step (module
+/// docs: the fade of one refresh is over before the next begins, so refreshes never sum
+/// into a standing force).
+pub fn refresh_handover_time(refresh: f64, advance: f64, dt: f64) -> f64 {
+    let to_next = match advance > 0.0 {
+        true => refresh / advance * dt,
+        false => HANDOVER_TIME,
+    };
+    to_next.clamp(dt.min(HANDOVER_TIME), HANDOVER_TIME)
+}
 
 /// The share left `elapsed` seconds into a handover lasting `duration`: `1 - S(s)`, `S(s) =
 /// s^2 (3 - 2 s)`, `s = elapsed / duration` clamped to `[0, 1]` (1 at the event, 0 once
@@ -180,6 +209,20 @@ impl Handover {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_refresh_hands_over_before_the_next_one() {
+        // 0.47 mm between refreshes: at 5 mm/s (0.274 ms steps) the next one is 94 ms
+        // away and the handover takes the full 40 ms; at 20 mm/s with 1 ms steps, 23.5 ms.
+        let dt = 2.74e-4;
+        assert_eq!(refresh_handover_time(4.7e-4, 0.005 * dt, dt), HANDOVER_TIME);
+        let t = refresh_handover_time(4.7e-4, 0.02 * 1e-3, 1e-3);
+        assert!((t - 0.0235).abs() < 1e-12, "{t}");
+        // Faster than a refresh a step: one step; standing still (no refresh is due):
+        // the full time.
+        assert_eq!(refresh_handover_time(4.7e-4, 1e-3, 1e-3), 1e-3);
+        assert_eq!(refresh_handover_time(4.7e-4, 0.0, 1e-3), HANDOVER_TIME);
+    }
 
     #[test]
     fn weight_falls_smoothly_from_one_to_zero() {

@@ -143,6 +143,10 @@ pub(crate) struct NeedleState {
     /// Whether this step's edits added or removed a node other than the Tip node.
     #[serde(skip)]
     pub edit_shaft: bool,
+    /// Whether this step refreshed the Tip node ([`crate::handover`]: handed over within
+    /// the time to the next refresh).
+    #[serde(skip)]
+    pub edit_refresh: bool,
     /// The force on the needle in the last step.
     pub force: NeedleForce,
     pub history: Vec<NeedleSample>,
@@ -186,6 +190,7 @@ impl NeedleState {
             before_edits: Vec::new(),
             edit_low: None,
             edit_shaft: false,
+            edit_refresh: false,
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,

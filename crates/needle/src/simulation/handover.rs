@@ -3,7 +3,7 @@
 //! difference once the edits are done, and the share added after each force evaluation.
 
 use super::Simulation;
-use crate::handover::{Handover, HANDOVER_TIME};
+use crate::handover::{refresh_handover_time, Handover, HANDOVER_TIME};
 use crate::node_editor::EditError;
 use crate::SimulationError;
 use needlesim_core::{NodeField, NodeSelection, SimError, Vec4};
@@ -71,7 +71,8 @@ impl Simulation {
         };
         let mut before = std::mem::take(&mut self.state.before_edits);
         let shaft = std::mem::take(&mut self.state.edit_shaft);
-        if !self.sheathed() || !shaft {
+        let refresh = std::mem::take(&mut self.state.edit_refresh);
+        if !self.sheathed() || !(shaft || refresh) {
             return Ok(());
         }
         // Slots from the first one this step's additions took (or the removals freed) on
@@ -109,12 +110,27 @@ impl Simulation {
         if let Some(h) = self.state.handover.as_mut() {
             h.keep_below(kept);
         }
+        // A Shaft, Surface or Exit node event hands over in `HANDOVER_TIME`; a step that
+        // only refreshed the Tip node within the time the tip takes at its speed to the
+        // next refresh, so that refreshes never pile up (module docs); neither cuts short
+        // what is left of a handover running.
+        let own = match shaft {
+            true => HANDOVER_TIME,
+            false => {
+                refresh_handover_time(self.params.refresh, self.state.advance, self.stepper.dt())
+            }
+        };
+        let left = self
+            .state
+            .handover
+            .as_ref()
+            .map_or(0.0, |h| h.started + h.duration - now);
         self.state.handover = Some(Handover::start(
             self.state.handover.as_ref(),
             now,
             &nodes,
             &change,
-            HANDOVER_TIME,
+            own.max(left),
         ));
         Ok(())
     }

@@ -393,6 +393,7 @@ impl Simulation {
         )
         .map_err(|e| self.edit(e))?;
         self.state.tip_placed = st.tip.to_array();
+        self.state.edit_refresh = true;
         st.pos.pop();
         st.pos.push(st.tip);
         // The nodes below keep the velocities read at the start of the step, and the new
