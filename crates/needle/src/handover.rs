@@ -64,10 +64,11 @@
 //! force). Handed over, the largest high-pass excursion in the 20 ms after a refresh fell
 //! from 11 mN (median over the refreshes; 25 mN the largest) to 3.9 mN (4.3). With
 //! `force_audit.py` (CPU, dev machine, 2026-11-27) the largest buzz outside the 20 ms
-//! after a puncture went from 2.29% to 1.59% on the liver, 5.56% to 3.27% on
-//! `layered_liver_biopsy.toml` and 4.68% to 3.27% on `needle_insert_extract.toml`
-//! (phantom 3.47% to 3.80%, both its puncture's release at the audit's 20 ms); no jump
-//! appeared. Handing refreshes over first made the GPU and CPU runs of the layered test
+//! after a puncture went from 2.29% to 1.59% on the liver and 5.56% to 3.22% on
+//! `layered_liver_biopsy.toml` (with the warm starts kept, below), and stayed where it
+//! was on `needle_insert_extract.toml` (4.68%, 4.76%: the reversal's zero crossing) and
+//! `phantom_insertion.toml` (3.47%, 3.80%: its puncture's release at the audit's 20
+//! ms); no jump appeared. Handing refreshes over first made the GPU and CPU runs of the layered test
 //! (`tests/layers.rs`) drift three steps apart at their events: each handover evaluates
 //! forces locally twice more, and the GPU backend, which evaluates every node, refined
 //! co-rotated Debunne's warm-start rotations at every such evaluation; local
