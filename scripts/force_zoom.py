@@ -6,10 +6,12 @@ signal, not only at the figures an audit gives).
 
 OUT_DIR is a `needlesim run --out` folder (its `needle_force.csv`). Without `--at` the
 panels are chosen from the run itself: the first puncture, the step with the largest
-high-frequency part outside the 20 ms after a puncture, the first Shaft node added after
-the puncture, the first Tip refresh after it (the tip's material depth moving by more
-than a tenth of a millimetre in one step with no node count change) and the first
-reversal from advancing to withdrawing. Each panel shows, over `--window` seconds (0.1 by
+high-frequency part outside the 20 ms after a puncture, the first needle node added after
+the puncture, the first Tip refresh after it (the tip's material depth moving in one
+step by more than ten times the tip's largest advance in a step, with no node count
+change) and the first reversal from advancing to withdrawing. Rows within 20 ms of a
+puncture (the state becoming inside, or the region changing inside) are not searched for
+the largest buzz, as in the audit. Each panel shows, over `--window` seconds (0.1 by
 default) centred on its time:
 
 - the axial force, the tip's element (cutting or membrane) and their difference, the
@@ -23,12 +25,13 @@ Needs numpy and matplotlib.
 """
 import argparse
 import csv
+import sys
 
 import numpy as np
 
 
 def movmean(x, w):
-    w = max(1, int(w))
+    w = max(1, min(int(w), len(x)))
     return np.convolve(x, np.ones(w) / w, mode="same")
 
 
@@ -49,7 +52,9 @@ def load(out_dir):
     }
     t, F = run["t"], run["F"]
     n = len(t)
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
+    if n < 2:
+        sys.exit(f"{out_dir}/needle_force.csv has {n} rows: nothing to plot")
+    dt = float(np.median(np.diff(t)))
     run["dt"] = dt
     state = [r["state"] for r in rows]
     region = [r.get("region", "") for r in rows]
@@ -66,7 +71,14 @@ def load(out_dir):
     dn = np.diff(run["nodes"], prepend=run["nodes"][0])
     dm = np.abs(np.diff(run["material"], prepend=run["material"][0]))
     run["node_events"] = t[dn != 0]
-    run["refreshes"] = t[(dn == 0) & (dm > 1e-4) & run["inside"]]
+    run["additions"] = t[dn > 0]
+    # A Tip refresh re-places the Tip node: the tip's material depth moves in one step by
+    # far more than the tip's own advance (the threshold: ten times the largest advance
+    # of a step without an event, and at least 1 um).
+    advance = np.abs(np.diff(run["depth"], prepend=run["depth"][0]))
+    quiet = run["inside"] & (dn == 0) & np.isfinite(dm)
+    floor = max(10.0 * float(np.percentile(advance[quiet], 99)) if quiet.any() else 0.0, 1e-6)
+    run["refreshes"] = t[(dn == 0) & (dm > floor) & run["inside"]]
     dd = np.diff(run["depth"], prepend=run["depth"][0])
     run["reversals"] = [
         t[i] for i in range(1, n) if dd[i] < -1e-9 and np.any(dd[max(0, i - 50):i] > 1e-9)
@@ -91,7 +103,7 @@ def pick(run):
         i = np.argmax(np.where(ok, run["buzz"], -1.0))
         out.append((f"largest buzz ({run['buzz'][i]:.2f}%)", t[i]))
     after = first if first is not None else -np.inf
-    added = [e for e in run["node_events"] if e > after + 0.05]
+    added = [e for e in run["additions"] if e > after + 0.05]
     if added:
         out.append(("node added", added[0]))
     refreshed = [e for e in run["refreshes"] if e > after + 0.05]
@@ -119,10 +131,13 @@ def main():
     import matplotlib.pyplot as plt
 
     run = load(a.out_dir)
-    panels = [(f"t = {x:g} s", x) for x in a.at] if a.at else pick(run)
+    t = run["t"]
+    panels = [("at", x) for x in a.at] if a.at else pick(run)
     if not panels:
         ap.error("nothing to zoom into: the run has no puncture, node event or reversal")
-    t = run["t"]
+    for _, x in panels:
+        if not t[0] - a.window / 2 <= x <= t[-1] + a.window / 2:
+            ap.error(f"--at {x:g} s is outside the run ({t[0]:g} to {t[-1]:g} s)")
     fig, axes = plt.subplots(2, len(panels), figsize=(4.2 * len(panels), 6.4), squeeze=False)
     for k, (label, centre) in enumerate(panels):
         s = np.abs(t - centre) <= a.window / 2
@@ -143,7 +158,7 @@ def main():
                 if abs(e - centre) <= a.window / 2:
                     ax.axvline(e, color="grey", lw=0.6, ls=":")
             ax.grid(alpha=0.3)
-        top.set_title(f"{label}, t = {centre:.3f} s", fontsize=9)
+        top.set_title(f"{label}, t = {centre:.3f} s" if label != "at" else f"t = {centre:.3f} s", fontsize=9)
         bottom.set_xlabel("time, s")
         if k == 0:
             top.set_ylabel("force, N")

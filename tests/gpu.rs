@@ -827,49 +827,63 @@ fn the_gpu_guard_reads_a_flag_and_names_what_the_full_check_names() {
 /// handed over (2026-11-27). A whole evaluation does refine them: the check can fail.
 #[test]
 fn local_force_evaluations_keep_the_warm_start_rotations() {
-    let material = Material::DebunneMeshfree(DebunneParams::new(1e4, 0.3).with_corotated(true));
-    let scene = cube_scene(material, 639, 5.0, [1.3, 1.0, 1.0]);
-    let tissue = Tissue::from_scene(&scene).unwrap();
-    let mut backends: Vec<(&str, Box<dyn Backend>)> = vec![(
-        "cpu",
-        Box::new(needlesim::CpuBackend::new(tissue.clone(), Threading::Single).unwrap()),
-    )];
-    if let Some(g) = gpu(&tissue) {
-        backends.push(("gpu", Box::new(g)));
-    }
-    for (name, mut b) in backends {
-        b.step(30);
-        let n = b.n_active();
-        let rotations = |b: &mut dyn Backend| {
-            let mut out = vec![0u8; n * 16];
-            b.read_shape_bytes(ShapeArray::Rotation, 0, &mut out)
+    use needlesim::core::models::viscoelastic::{Prony, PronyTerm};
+    let elastic = DebunneParams::new(1e4, 0.3).with_corotated(true);
+    let visco = elastic.with_viscoelastic(Prony::new(&[PronyTerm { g: 0.3, tau: 0.05 }]));
+    for (label, params) in [("co-rotated", elastic), ("co-rotated viscoelastic", visco)] {
+        let scene = cube_scene(Material::DebunneMeshfree(params), 639, 5.0, [1.3, 1.0, 1.0]);
+        let tissue = Tissue::from_scene(&scene).unwrap();
+        let mut backends: Vec<(&str, Box<dyn Backend>)> = vec![(
+            "cpu",
+            Box::new(needlesim::CpuBackend::new(tissue.clone(), Threading::Single).unwrap()),
+        )];
+        if let Some(g) = gpu(&tissue) {
+            backends.push(("gpu", Box::new(g)));
+        }
+        for (name, mut b) in backends {
+            b.step(30);
+            let n = b.n_active();
+            let rotations = |b: &mut dyn Backend| {
+                let mut out = vec![0u8; n * 16];
+                b.read_shape_bytes(ShapeArray::Rotation, 0, &mut out)
+                    .unwrap();
+                out
+            };
+            let subset = [(n - 1) as u32, 0, 333, 17];
+            // A rotation written just before, with no readback in between (a node the
+            // needle adds writes its own): the GPU records it ahead of the copy aside, so
+            // it is what comes back.
+            let turned = [0.0f32, 0.0, 0.38268343, 0.9238795];
+            let mut before = rotations(b.as_mut());
+            before[17 * 16..18 * 16].copy_from_slice(bytemuck::cast_slice(&turned));
+            b.write_shape_bytes(ShapeArray::Rotation, 17 * 16, bytemuck::cast_slice(&turned))
                 .unwrap();
-            out
-        };
-        let subset = [(n - 1) as u32, 0, 333, 17];
-        let before = rotations(b.as_mut());
-        b.compute_forces_on(&subset);
-        let local = read(b.as_mut(), NodeField::Force);
-        assert!(
-            rotations(b.as_mut()) == before,
-            "{name}: a local evaluation changed the warm-start rotations"
-        );
-        b.compute_forces();
-        let whole = read(b.as_mut(), NodeField::Force);
-        assert!(
-            rotations(b.as_mut()) != before,
-            "{name}: a whole evaluation left every rotation as it was"
-        );
-        // The same forces on the asked nodes (bitwise on the CPU; the GPU's two passes
-        // are the same kernels on the same data).
-        for &i in &subset {
-            let i = i as usize;
-            assert!(norm3(local[i]) > 0.0, "{name}: node {i} carries no force");
-            assert_eq!(
-                local[i].map(f32::to_bits),
-                whole[i].map(f32::to_bits),
-                "{name}: node {i}"
+            b.compute_forces_on(&subset);
+            let local = read(b.as_mut(), NodeField::Force);
+            assert!(
+                rotations(b.as_mut()) == before,
+                "{label}, {name}: a local evaluation changed the warm-start rotations"
             );
+            b.compute_forces();
+            let whole = read(b.as_mut(), NodeField::Force);
+            assert!(
+                rotations(b.as_mut()) != before,
+                "{label}, {name}: a whole evaluation left every rotation as it was"
+            );
+            // The same forces on the asked nodes (bitwise on the CPU; the GPU's two
+            // passes are the same kernels on the same data).
+            for &i in &subset {
+                let i = i as usize;
+                assert!(
+                    norm3(local[i]) > 0.0,
+                    "{label}, {name}: node {i} carries no force"
+                );
+                assert_eq!(
+                    local[i].map(f32::to_bits),
+                    whole[i].map(f32::to_bits),
+                    "{label}, {name}: node {i}"
+                );
+            }
         }
     }
 }

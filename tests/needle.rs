@@ -453,6 +453,9 @@ impl Backend for CountingReads {
     fn compute_forces(&mut self) {
         self.inner.compute_forces()
     }
+    fn compute_forces_on(&mut self, nodes: &[u32]) {
+        self.inner.compute_forces_on(nodes)
+    }
     fn integrate(&mut self) {
         self.inner.integrate()
     }
@@ -564,7 +567,8 @@ fn summary(counts: &[(u64, bool)]) -> String {
 /// needle nodes read more (a node edit settles the new nodes in equilibrium: a few force
 /// evaluations, each read back; the neighbourhood is read once per settle, not at every
 /// re-placement), and so does the divergence guard every `check_every` steps. Here a
-/// Tip refresh reads back 7 times and a node addition 15 (they were 15 and 35 before
+/// Tip refresh reads back 8 or 9 times (7 before refreshes were handed over, 2026-11-27)
+/// and a node addition 15 (they were 15 and 35 before
 /// the editor kept its reads during a settle, the reads of an addition and of the Tip's
 /// removal were merged and a refresh kept the velocities it knows): at most 18 per step
 /// is asserted, the room of three more force evaluations in a settle.

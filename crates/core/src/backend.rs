@@ -99,12 +99,16 @@ pub trait Backend: Send {
     /// the few nodes it places, several times per edit. The CPU backend evaluates only
     /// those nodes and the neighbours their forces read; the default evaluates every node.
     /// Warm starts that only speed up the next pass (co-rotated Debunne's rotations,
-    /// [`crate::models::Shape::rotation_is_warm_start`]) are left as they were by every
-    /// backend, so that how many local evaluations a step makes (the needle's node
-    /// events) does not change the next full pass: the GPU backend, which evaluates every
-    /// node, refined every node's rotation once more per local evaluation and its runs
-    /// drifted from the CPU's by a few steps at the layered test's events when Tip
-    /// refreshes were handed over (`tests/layers.rs`, 2026-11-27).
+    /// [`crate::models::Shape::rotation_is_warm_start`]) are left as they were by the CPU
+    /// and GPU backends, so that how many local evaluations a step makes (the needle's
+    /// node events) does not change the next full pass: the GPU backend, which evaluates
+    /// every node, refined every node's rotation once more per local evaluation and its
+    /// runs drifted from the CPU's by a few steps at the layered test's events when Tip
+    /// refreshes were handed over (`tests/layers.rs`, 2026-11-27). This default, which
+    /// calls `compute_forces`, does refine them: a backend that wraps another must
+    /// forward this method. Shape matching's rotations are not warm starts only (its
+    /// cluster forces read the neighbours'): a local evaluation writes those of the
+    /// nodes it evaluates on the CPU and every node's on the GPU.
     fn compute_forces_on(&mut self, nodes: &[u32]) {
         let _ = nodes;
         self.compute_forces();

@@ -33,9 +33,11 @@
 //! ```
 //!
 //! so the force on every node is continuous at the event (`w = 1`) and reaches the new
-//! rows' force with a continuous rate (`S` is C1) after `T`. A second event within `T`
-//! adds its own difference to what is left of the first (`w r_j`) and starts again, so the
-//! force stays continuous whatever the events' spacing.
+//! rows' force with a continuous rate (`S` is C1) after `T`. `T` is per event: 40 ms for
+//! a node event, less for a Tip refresh (below). A second event before the first is
+//! done adds its own difference to what is left of the first (`w r_j`) and starts again
+//! with the longer of its own `T` and what the first had left, so the force stays
+//! continuous whatever the events' spacing.
 //!
 //! Why a time and which one: the change is the discretisation's (the tissue round a
 //! removed node is the same material before and after); what a user must not feel is its
@@ -68,8 +70,8 @@
 //! `layered_liver_biopsy.toml` (with the warm starts kept, below), and stayed where it
 //! was on `needle_insert_extract.toml` (4.68%, 4.76%: the reversal's zero crossing) and
 //! `phantom_insertion.toml` (3.47%, 3.80%: its puncture's release at the audit's 20
-//! ms); no jump appeared. Handing refreshes over first made the GPU and CPU runs of the layered test
-//! (`tests/layers.rs`) drift three steps apart at their events: each handover evaluates
+//! ms); no jump appeared. Handing refreshes over first made the GPU and CPU runs of the
+//! layered test (`tests/layers.rs`) drift three steps apart at their events: each handover evaluates
 //! forces locally twice more, and the GPU backend, which evaluates every node, refined
 //! co-rotated Debunne's warm-start rotations at every such evaluation; local
 //! evaluations now leave those as they were on every backend
@@ -98,8 +100,8 @@
 //! with the additions put back when the step added nodes, and one after the edits; on
 //! the GPU each is a full force pass and a readback (its `compute_forces_on` evaluates
 //! every node, and leaves co-rotated Debunne's warm-start rotations as they were, as
-//! the CPU's does). A Tip refresh pays the two after its removal too. While a handover runs,
-//! the forces of its nodes (a few dozen) are read with the needle nodes' forces in the
+//! the CPU's does). A Tip refresh pays the two after its removal too. While a handover
+//! runs, the forces of its nodes (a few dozen) are read with the needle nodes' forces in the
 //! step's existing readback and written back; only after the needle has left the tissue
 //! does it read back on its own (`tests/needle.rs` counts the readbacks per step).
 //!

@@ -140,7 +140,9 @@ pub(crate) struct NeedleState {
     /// are this step's.
     #[serde(skip)]
     pub edit_low: Option<usize>,
-    /// Whether this step's edits added or removed a node other than the Tip node.
+    /// Whether this step's edits are handed over in full ([`crate::handover`]): a node other
+    /// than the Tip node added or removed, or the Tip node's last removal on the way out
+    /// or its return behind the crack front.
     #[serde(skip)]
     pub edit_shaft: bool,
     /// Whether this step refreshed the Tip node ([`crate::handover`]: handed over within
