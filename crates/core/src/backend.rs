@@ -99,7 +99,7 @@ pub trait Backend: Send {
     /// the few nodes it places, several times per edit. The CPU backend evaluates only
     /// those nodes and the neighbours their forces read; the default evaluates every node.
     /// Warm starts that only speed up the next pass (co-rotated Debunne's rotations,
-    /// [`crate::models::Shape::rotation_is_warm_start`]) are left as they were by the CPU
+    /// [`crate::models::ShapeInfo::rotation_is_warm_start`]) are left as they were by the CPU
     /// and GPU backends, so that how many local evaluations a step makes (the needle's
     /// node events) does not change the next full pass: the GPU backend, which evaluates
     /// every node, refined every node's rotation once more per local evaluation and its
