@@ -30,7 +30,9 @@
 //!
 //! - The integration alone (every model's last pass): 112 bytes and 36 flops per node.
 //!
-//! `cargo bench --bench roofline` (about a minute on 2 cores).
+//! `cargo bench --bench roofline` (a few minutes on 2 cores); `NEEDLESIM_ROOFLINE_MODELS=msm,deb`
+//! measures only the models with those labels (the machine's limits and the integration
+//! always).
 
 use needlesim::core::models::VISCOUS_NEXT;
 use needlesim::{Backend, CpuBackend, Threading, Tissue};
@@ -156,7 +158,8 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 /// - the continuum models' moving least squares: gradient 37 per live slot and 45, with
 ///   the hourglass control's quadratic fit 42 more per live slot (six monomials, their
 ///   outer product with the displacement difference) and 441 (`B2 - B C^T` 108, `H =
-///   (..) M^-1` 216, `H C` 108, `J - H C` 9), the packed first pass 92, the gather 110
+///   (..) M^-1` 216, `H C` 108, `J - H C` 9), the integration correction 351 (`T E` 108,
+///   `G = V P E^T` 108, `G C` 108, folding them in 27), the packed first pass 92, the gather 110
 ///   per live slot (44, and 66 for the quadratic term) and 18; the stress: linear 34,
 ///   point based (Green strain, `F S`) 124, neo-Hookean 79, co-rotated (`R` from its
 ///   quaternion, `R^T F - I`, linear, `R sigma`) 154 plus a shape matching frame; a
@@ -167,7 +170,7 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
     const INTEGRATE: f64 = 36.0;
     let frame = 43.0 * k + 51.0 + 49.0 + 130.0 * 2.0;
-    let mls = |stress: f64| 79.0 * live + 486.0 + stress + 92.0 + 110.0 * live + 18.0;
+    let mls = |stress: f64| 79.0 * live + 486.0 + 351.0 + stress + 92.0 + 110.0 * live + 18.0;
     INTEGRATE
         + match label {
             "msm" => 31.0 * k + 9.0,
@@ -237,7 +240,14 @@ fn main() {
         "% triad",
         "% peak"
     );
+    // `NEEDLESIM_ROOFLINE_MODELS=msm,deb` measures only those labels (benches/common).
+    let only: Option<Vec<String>> = std::env::var("NEEDLESIM_ROOFLINE_MODELS")
+        .ok()
+        .map(|s| s.split(',').map(|m| m.trim().to_string()).collect());
     for (label, material) in MODELS {
+        if only.as_ref().is_some_and(|o| !o.iter().any(|m| m == label)) {
+            continue;
+        }
         let tissue = Tissue::from_scene(&cube(material, nodes, 1e-5, 1.01)).unwrap();
         let bytes = bytes_per_node_step(&tissue);
         let n = tissue.n_mesh;

@@ -44,7 +44,7 @@ fn slot(i: u32, s: u32) -> u32 {
 
 // Floats per node of the continuum models' moment row and vec4 per node of their first
 // pass (mls.rs::MOMENT_ROW, FIRST_PASS_ROW / 4).
-const MOMENT_ROW: u32 = 48u;
+const MOMENT_ROW: u32 = 66u;
 const FIRST_PASS_VEC4: u32 = 7u;
 
 // Row-major 3x3 matrices are stored as mat3x3 whose columns hold the rows (so m[r][c] reads

@@ -34,7 +34,8 @@ struct Gradient {
 }
 
 // Node i's moment row (mls.rs::MomentRow): A^-1 (row-major, floats 0..9), the quadratic
-// basis C (6x3 row-major, 9..27), M^-1 (6x6 upper triangle, 27..48).
+// basis C (6x3 row-major, 9..27), M^-1 (6x6 upper triangle, 27..48), the integration
+// correction E (6x3 row-major, 48..66; consistency.rs).
 fn a_inv(i: u32) -> mat3x3<f32> {
     let b = MOMENT_ROW * i;
     return mat3x3<f32>(
@@ -46,6 +47,11 @@ fn a_inv(i: u32) -> mat3x3<f32> {
 
 fn basis_row(b: u32, r: u32) -> vec3<f32> {
     let o = b + 9u + 3u * r;
+    return vec3<f32>(inverse_moment[o], inverse_moment[o + 1u], inverse_moment[o + 2u]);
+}
+
+fn correction_row(b: u32, r: u32) -> vec3<f32> {
+    let o = b + 48u + 3u * r;
     return vec3<f32>(inverse_moment[o], inverse_moment[o + 1u], inverse_moment[o + 2u]);
 }
 
@@ -106,30 +112,60 @@ fn gradient(i: u32) -> Gradient {
     let hc1 = h0.y * c0 + h1.y * c1 + h2.y * c2 + h3.y * c3 + h4.y * c4 + h5.y * c5;
     let hc2 = h0.z * c0 + h1.z * c1 + h2.z * c2 + h3.z * c3 + h4.z * c4 + h5.z * c5;
     let hc = mat3x3<f32>(hc0, hc1, hc2);
-    return Gradient(j, trace, j - hc, h0, h1, h2, h3, h4, h5);
+    // The integration correction J~ = J + T E (row a: sum_r t_r[a] e_r), which the stress
+    // is taken from; the hourglass fit keeps J.
+    let e0 = correction_row(base, 0u);
+    let e1 = correction_row(base, 1u);
+    let e2 = correction_row(base, 2u);
+    let e3 = correction_row(base, 3u);
+    let e4 = correction_row(base, 4u);
+    let e5 = correction_row(base, 5u);
+    let te = mat3x3<f32>(
+        t0.x * e0 + t1.x * e1 + t2.x * e2 + t3.x * e3 + t4.x * e4 + t5.x * e5,
+        t0.y * e0 + t1.y * e1 + t2.y * e2 + t3.y * e3 + t4.y * e4 + t5.y * e5,
+        t0.z * e0 + t1.z * e1 + t2.z * e2 + t3.z * e3 + t4.z * e4 + t5.z * e5,
+    );
+    return Gradient(j + te, trace, j - hc, h0, h1, h2, h3, h4, h5);
 }
 
 fn identity() -> mat3x3<f32> {
     return mat3x3<f32>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
 }
 
-// Packs [V P A^-1 - c Jf (9 floats, row-major), c, c H (18 floats, column by column)]
-// (mls.rs::pack_first_pass) in FIRST_PASS_VEC4 vec4 per node.
+// Packs [V P A^-1 - G C - c Jf (9 floats, row-major), c, c H - G (18 floats, column by
+// column)] with G = V P E^T, the integration correction's stress terms
+// (mls.rs::pack_first_pass), in FIRST_PASS_VEC4 vec4 per node.
 fn store(i: u32, p: mat3x3<f32>, g: Gradient, vol: f32, hourglass: f32) {
     let q = mat_mul(p, a_inv(i));
     var c = 0.0;
     if g.trace > 0.0 {
         c = hourglass * vol / g.trace;
     }
-    let o0 = vol * q[0] - c * g.fit_j[0];
-    let o1 = vol * q[1] - c * g.fit_j[1];
-    let o2 = vol * q[2] - c * g.fit_j[2];
-    let h0 = c * g.h0;
-    let h1 = c * g.h1;
-    let h2 = c * g.h2;
-    let h3 = c * g.h3;
-    let h4 = c * g.h4;
-    let h5 = c * g.h5;
+    let base = MOMENT_ROW * i;
+    let g0 = vol * mat_vec(p, correction_row(base, 0u));
+    let g1 = vol * mat_vec(p, correction_row(base, 1u));
+    let g2 = vol * mat_vec(p, correction_row(base, 2u));
+    let g3 = vol * mat_vec(p, correction_row(base, 3u));
+    let g4 = vol * mat_vec(p, correction_row(base, 4u));
+    let g5 = vol * mat_vec(p, correction_row(base, 5u));
+    let c0 = basis_row(base, 0u);
+    let c1 = basis_row(base, 1u);
+    let c2 = basis_row(base, 2u);
+    let c3 = basis_row(base, 3u);
+    let c4 = basis_row(base, 4u);
+    let c5 = basis_row(base, 5u);
+    let gc0 = g0.x * c0 + g1.x * c1 + g2.x * c2 + g3.x * c3 + g4.x * c4 + g5.x * c5;
+    let gc1 = g0.y * c0 + g1.y * c1 + g2.y * c2 + g3.y * c3 + g4.y * c4 + g5.y * c5;
+    let gc2 = g0.z * c0 + g1.z * c1 + g2.z * c2 + g3.z * c3 + g4.z * c4 + g5.z * c5;
+    let o0 = vol * q[0] - gc0 - c * g.fit_j[0];
+    let o1 = vol * q[1] - gc1 - c * g.fit_j[1];
+    let o2 = vol * q[2] - gc2 - c * g.fit_j[2];
+    let h0 = c * g.h0 - g0;
+    let h1 = c * g.h1 - g1;
+    let h2 = c * g.h2 - g2;
+    let h3 = c * g.h3 - g3;
+    let h4 = c * g.h4 - g4;
+    let h5 = c * g.h5 - g5;
     let b = FIRST_PASS_VEC4 * i;
     first_pass[b] = vec4<f32>(o0, o1.x);
     first_pass[b + 1u] = vec4<f32>(o1.y, o1.z, o2.x, o2.y);

@@ -446,3 +446,132 @@ fn local_force_evaluation_gives_the_whole_evaluations_forces() {
         assert!(b[100][0].is_nan(), "{label}: node 100 was evaluated");
     }
 }
+
+/// The linear patch test on a resampled ball (surface-net vertices over an interior
+/// lattice: the node clouds whose nodal integration is not consistent,
+/// `core/src/models/consistency.rs`): under a uniform strain every node's internal force
+/// must balance the traction `sigma a_k` of its share `a_k` of the outward area (zero
+/// inside). With the integration corrections the mismatch (RMS over the nodes, relative
+/// to the traction's) must be below a tenth of what the plain gradient leaves: measured
+/// 2.4% against 63% at 463 nodes on the dev machine (the solve's damping keeps a
+/// remainder, module docs). The stable step must stay within 15% of the plain one's
+/// (measured 9.1% shorter).
+#[test]
+fn integration_corrections_pass_the_linear_patch_test() {
+    use needlesim::core::geometry::{resample::resample, shapes::capsule};
+    use needlesim::core::models::consistency::{patch_test_residual, CORRECTION_OFFSET};
+    use needlesim::core::models::ModelShape;
+    use needlesim::core::stability::max_eigenvalue;
+    use needlesim::{CpuBackend, Scene, Tissue};
+    let (r, h) = (0.05, 0.0125);
+    let scene = Scene::builder()
+        .density(1000.0)
+        .neighbours(18)
+        .box_with_spacing([0.0; 3], [0.1; 3], h)
+        .material(Material::debunne(1e4, 0.3))
+        .dt(1e-4)
+        .build()
+        .unwrap();
+    let surface = capsule([0.0, -r, 0.0], 2.0 * r, r, 48, 24);
+    let cloud = resample(&surface, h, std::path::Path::new("ball")).unwrap();
+    let corrected = Tissue::from_cloud(&scene, cloud, 0).unwrap();
+    let mut plain = corrected.clone();
+    let ModelShape::DebunneMeshfree(shape) = &mut plain.shape.model else {
+        panic!("a Debunne tissue")
+    };
+    for row in shape.continuum.inverse_moment.iter_mut() {
+        row[CORRECTION_OFFSET..].fill(0.0);
+    }
+    let n = corrected.n_mesh;
+    let rest: Vec<[f64; 3]> = corrected.state.positions[..n]
+        .iter()
+        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+        .collect();
+    // A uniform strain: u = eps G x, G symmetric with every component.
+    let g = [[1.0, 0.3, -0.2], [0.3, -0.5, 0.4], [-0.2, 0.4, 0.7]];
+    let eps = 1e-4;
+    let (lambda, mu) = needlesim::core::models::mls::lame(1e4, 0.3);
+    let tr = g[0][0] + g[1][1] + g[2][2];
+    let sigma =
+        |a: usize, b: usize| eps * (2.0 * mu * g[a][b] + if a == b { lambda * tr } else { 0.0 });
+    let mismatch = |tissue: &Tissue| {
+        let ModelShape::DebunneMeshfree(shape) = &tissue.shape.model else {
+            unreachable!()
+        };
+        let c = &shape.continuum;
+        // a_k alone: the residual of zero corrections and zero gradient weights is a_k - b_k;
+        // take a_k from the surface directly.
+        let mut area = vec![[0.0f64; 3]; n];
+        for tri in &tissue.triangles {
+            let [p, q, s] = tri.map(|v| rest[v as usize]);
+            let e1 = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+            let e2 = [s[0] - p[0], s[1] - p[1], s[2] - p[2]];
+            let cr = [
+                e1[1] * e2[2] - e1[2] * e2[1],
+                e1[2] * e2[0] - e1[0] * e2[2],
+                e1[0] * e2[1] - e1[1] * e2[0],
+            ];
+            for v in tri {
+                for a in 0..3 {
+                    area[*v as usize][a] += cr[a] / 6.0;
+                }
+            }
+        }
+        let mut b = CpuBackend::new(tissue.clone(), Threading::Single).unwrap();
+        let moved: Vec<_> = rest
+            .iter()
+            .map(|x| {
+                let u: Vec<f64> = (0..3)
+                    .map(|a| eps * (0..3).map(|c| g[a][c] * x[c]).sum::<f64>())
+                    .collect();
+                [
+                    (x[0] + u[0]) as f32,
+                    (x[1] + u[1]) as f32,
+                    (x[2] + u[2]) as f32,
+                    1.0,
+                ]
+            })
+            .collect();
+        b.write(NodeField::Position, 0, &moved).unwrap();
+        b.compute_forces();
+        let f = read(&mut b, NodeField::Force);
+        let (mut miss, mut load) = (0.0f64, 0.0f64);
+        for (fk, ak) in f.iter().zip(&area) {
+            for (a, fa) in fk.iter().take(3).enumerate() {
+                let t: f64 = (0..3).map(|c| sigma(a, c) * ak[c]).sum();
+                miss += (*fa as f64 + t).powi(2);
+                load += t * t;
+            }
+        }
+        // The same figure from the constraint itself (geometry only, no forces).
+        let r = patch_test_residual(
+            &c.rest_position,
+            &tissue.neighbours,
+            n,
+            &tissue.triangles,
+            &c.inverse_moment,
+        );
+        eprintln!(
+            "constraint residual {:.4e}",
+            r.iter().map(|v| v.length_squared()).sum::<f64>().sqrt()
+        );
+        (miss / load).sqrt()
+    };
+    let (before, after) = (mismatch(&plain), mismatch(&corrected));
+    assert!(
+        after < 0.1 * before,
+        "force mismatch of the uniform strain: {after:.4} with the corrections, {before:.4} without"
+    );
+    let dt = |t: &Tissue| {
+        let mut b = CpuBackend::new(t.clone(), Threading::Single).unwrap();
+        max_eigenvalue(&mut b, 40).unwrap().critical_dt
+    };
+    let (dt_plain, dt_corrected) = (dt(&plain), dt(&corrected));
+    assert!(
+        dt_corrected > 0.85 * dt_plain,
+        "critical step {dt_corrected:e} with the corrections, {dt_plain:e} without"
+    );
+    eprintln!(
+        "mismatch {before:.4} -> {after:.4}, critical dt {dt_plain:.4e} -> {dt_corrected:.4e}"
+    );
+}

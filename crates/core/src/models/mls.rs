@@ -75,6 +75,16 @@
 //!   gather, 52 against 22 us at 100k, is now the larger pass), on top of the smaller
 //!   stable step.
 //!
+//! - Integration correction ([`super::consistency`]): the stress is taken from
+//!   `J~_i = J_i + T_i E_i`, `T_i = sum_j w_ij du_ij t_ij^T` (the first pass forms it for
+//!   the fit above) and `E_i` a per-node 6x3 matrix solved at the rest state (floats
+//!   48..66 of the [`MomentRow`]) so that the nodal integration passes the linear patch
+//!   test on any node cloud. `T_i` is zero for every linear field, so `J~_i` stays exact
+//!   for them and for rigid motions; the hourglass fit keeps `J_i`. In the first pass
+//!   `G_i = V_i P_i E_i^T` (3x6) joins `Q_i` as `-G_i C_i` and the quadratic columns as
+//!   `-G_i`, and the gather is unchanged. (The Kelvin-Voigt viscous stress keeps the
+//!   uncorrected operator: still dissipative.)
+//!
 //! All forces are gradients of one energy whose terms depend only on differences:
 //! momentum is conserved and the rest state gives exactly zero force.
 //!
@@ -203,9 +213,18 @@ impl ContinuumArrays {
         ctx: BuildContext,
     ) -> ContinuumArrays {
         let rest_position = super::local_shape_matching::rest_positions(rest);
+        let rest_position = with_volumes(rest_position, node_volumes(rule, rest, nb, n, ctx));
+        let mut inverse_moment = moment_rows(&rest_position, nb, n);
+        super::consistency::integration_corrections(
+            &rest_position,
+            nb,
+            n,
+            ctx.triangles,
+            &mut inverse_moment,
+        );
         ContinuumArrays {
-            inverse_moment: moment_rows(&rest_position, nb, n),
-            rest_position: with_volumes(rest_position, node_volumes(rule, rest, nb, n, ctx)),
+            inverse_moment,
+            rest_position,
             volume_rule: rule,
             first_pass: vec![[0.0; FIRST_PASS_ROW]; rest.len()],
             prony: Prony::elastic(),
@@ -311,11 +330,14 @@ impl ContinuumArrays {
         volume_scale: f64,
         rest_position: bool,
     ) -> Vec<ShapeRow> {
-        let mut out = vec![row(
-            ShapeArray::InverseMoment,
-            i,
-            &[moment_row(i, rest, nb)],
-        )];
+        // A node whose row changes keeps its integration correction (a new node has none;
+        // [`super::consistency`]).
+        let mut moments = moment_row(i, rest, nb);
+        if !rest_position {
+            let o = super::consistency::CORRECTION_OFFSET;
+            moments[o..].copy_from_slice(&self.inverse_moment[i][o..]);
+        }
+        let mut out = vec![row(ShapeArray::InverseMoment, i, &[moments])];
         if rest_position || self.volume_rule == NodeVolumes::Density {
             let v = added_node_volume(self.volume_rule, i, rest, nb, volume_scale);
             let r = rest[i];
@@ -460,14 +482,16 @@ pub fn sym_pseudo_inverse(a: &Matrix3<f64>, rel_tol: f64) -> (Matrix3<f64>, usiz
 }
 
 /// Floats per node of a [`MomentRow`].
-pub const MOMENT_ROW: usize = 48;
+pub const MOMENT_ROW: usize = 66;
 
 /// Node i's moment data: `A_i^-1` (row-major 3x3, floats 0..9), the hourglass control's
 /// quadratic basis `C_i = (sum_j w_ij s_ij x_ij^T) A_i^-1` (6x3 row-major, floats 9..27)
 /// and the inverse of its moment matrix `M_i = sum_j w_ij t_ij t_ij^T`, `t_ij = s_ij - C_i
 /// x_ij` (6x6 symmetric, upper triangle row by row, floats 27..48), with `s_ij` the
-/// quadratic monomials of the rest offset ([`monomials`]). A row whose quadratic part is
-/// zero gives the first-order hourglass control (the residual of the affine fit only).
+/// quadratic monomials of the rest offset ([`monomials`]), and the integration
+/// correction `E_i` (6x3 row-major, floats 48..66; [`integration_corrections`]). A row
+/// whose quadratic part is zero gives the first-order hourglass control (the residual of
+/// the affine fit only); a row whose correction is zero, the plain MLS gradient.
 pub type MomentRow = [f32; MOMENT_ROW];
 
 /// Floats per node of the first pass ([`pack_first_pass`]).
@@ -646,12 +670,25 @@ pub fn displacement_gradient(
     for (h, cr) in hessian.iter().zip(&c) {
         hc += Mat3::from_cols(*h * cr.x, *h * cr.y, *h * cr.z);
     }
+    // The integration correction: J~ = J + T E, T's column r the fit residual moment t_r.
+    let mut corrected = j;
+    for (r, tr) in t.iter().enumerate() {
+        let e = correction_row(moments, r);
+        corrected += Mat3::from_cols(*tr * e.x, *tr * e.y, *tr * e.z);
+    }
     Gradient {
-        j,
+        j: corrected,
         trace,
         fit_j: j - hc,
         hessian,
     }
+}
+
+/// Row `r` of node i's integration correction `E_i` in its [`MomentRow`].
+#[inline(always)]
+fn correction_row(moments: &MomentRow, r: usize) -> Vec3 {
+    let o = super::consistency::CORRECTION_OFFSET + 3 * r;
+    Vec3::new(moments[o], moments[o + 1], moments[o + 2])
 }
 
 /// First-pass result of node i from its stress `P_i`: `[V_i P_i A_i^-1 - c_i Jf_i (9
@@ -672,12 +709,20 @@ pub fn pack_first_pass(
     } else {
         0.0
     };
-    let m = (volume * q - c * g.fit_j).transpose().to_cols_array();
+    // The correction's stress terms: G = V P E^T (column r: V P e_r); `G C` joins the
+    // linear part, `-G` the quadratic one (the gather is unchanged; module docs).
+    let gr: [Vec3; 6] = std::array::from_fn(|r| volume * (*p * correction_row(moments, r)));
+    let mut gc = Mat3::ZERO;
+    for (r, g_r) in gr.iter().enumerate() {
+        let cr = Vec3::new(moments[9 + 3 * r], moments[10 + 3 * r], moments[11 + 3 * r]);
+        gc += Mat3::from_cols(*g_r * cr.x, *g_r * cr.y, *g_r * cr.z);
+    }
+    let m = (volume * q - gc - c * g.fit_j).transpose().to_cols_array();
     let mut out = [0.0f32; FIRST_PASS_ROW];
     out[..9].copy_from_slice(&m);
     out[9] = c;
     for (col, h) in g.hessian.iter().enumerate() {
-        out[10 + 3 * col..13 + 3 * col].copy_from_slice(&(c * *h).to_array());
+        out[10 + 3 * col..13 + 3 * col].copy_from_slice(&(c * *h - gr[col]).to_array());
     }
     out
 }

@@ -23,6 +23,7 @@
 //!
 //! Only the chosen model's arrays are allocated.
 
+pub mod consistency;
 pub mod continuum;
 pub mod debunne_meshfree;
 pub mod local_shape_matching;
