@@ -887,3 +887,93 @@ fn local_force_evaluations_keep_the_warm_start_rotations() {
         }
     }
 }
+
+/// The integration corrections (`core/src/models/consistency.rs`) on the GPU: a resampled
+/// ball, where they are large (on the cubes above they nearly vanish), squeezed by 2% and
+/// bent (a quadratic field: the gradient's correction is blind to linear ones) and its
+/// forces computed on both backends, for each continuum model. Tolerance 1e-4 of the
+/// largest force: the same f32 arithmetic up to fused multiply-adds (measured 1e-6 to
+/// 2e-6 on lavapipe; with the shader's gradient correction left out, 0.15).
+#[test]
+fn gpu_and_cpu_agree_on_the_integration_corrections() {
+    use needlesim::core::geometry::{resample::resample, shapes::capsule};
+    use needlesim::core::models::consistency::CORRECTION_OFFSET;
+    use needlesim::core::scene::{NeoHookeanParams, PointBasedParams};
+    use needlesim::CpuBackend;
+    let (r, h) = (0.05, 0.0125);
+    let materials = [
+        ("deb", Material::debunne(1e4, 0.3)),
+        (
+            "deb-corotated",
+            Material::DebunneMeshfree(DebunneParams::new(1e4, 0.3).with_corotated(true)),
+        ),
+        ("pba", Material::PointBased(PointBasedParams::new(1e4, 0.3))),
+        ("nh", Material::NeoHookean(NeoHookeanParams::new(1e4, 0.3))),
+    ];
+    for (label, material) in materials {
+        let scene = Scene::builder()
+            .density(1000.0)
+            .neighbours(18)
+            .box_with_spacing([0.0; 3], [0.1; 3], h)
+            .material(material)
+            .dt(1e-4)
+            .build()
+            .unwrap();
+        let surface = capsule([0.0, -r, 0.0], 2.0 * r, r, 48, 24);
+        let cloud = resample(&surface, h, std::path::Path::new("ball")).unwrap();
+        let tissue = Tissue::from_cloud(&scene, cloud, 0).unwrap();
+        let n = tissue.n_mesh;
+        let largest_correction = tissue
+            .shape
+            .bytes()
+            .into_iter()
+            .find(|(a, _)| *a == ShapeArray::InverseMoment)
+            .map(|(_, bytes)| {
+                let rows: &[f32] = bytemuck::cast_slice(bytes);
+                rows.chunks(needlesim::core::models::mls::MOMENT_ROW)
+                    .take(n)
+                    .flat_map(|row| row[CORRECTION_OFFSET..].iter().map(|v| v.abs()))
+                    .fold(0.0f32, f32::max)
+            })
+            .unwrap();
+        assert!(largest_correction > 0.0, "{label}: no correction to test");
+        let Some(mut g) = gpu(&tissue) else { return };
+        let mut c = CpuBackend::new(tissue.clone(), Threading::Single).unwrap();
+        let squeezed: Vec<[f32; 4]> = read(&mut c, NodeField::Position)
+            .iter()
+            .map(|p| {
+                // A squeeze and a bend: the correction acts on the quadratic part only.
+                let [x, y, z] = [p[0], p[1], p[2]];
+                [
+                    0.98 * x + 0.5 * y * y,
+                    1.01 * y + 0.4 * x * z,
+                    1.005 * z - 0.3 * x * y,
+                    p[3],
+                ]
+            })
+            .collect();
+        for b in [&mut c as &mut dyn Backend, &mut g] {
+            b.write(NodeField::Position, 0, &squeezed).unwrap();
+            b.compute_forces();
+        }
+        let (fc, fg) = (
+            read(&mut c, NodeField::Force),
+            read(&mut g, NodeField::Force),
+        );
+        let scale = fc.iter().map(|f| norm3(*f)).fold(0.0, f64::max);
+        let diff = fc
+            .iter()
+            .zip(&fg)
+            .map(|(a, b)| norm3([a[0] - b[0], a[1] - b[1], a[2] - b[2], 0.0]))
+            .fold(0.0, f64::max);
+        eprintln!(
+            "{label}: largest correction {largest_correction:e}, force difference {:e}",
+            diff / scale
+        );
+        assert!(
+            diff < 1e-4 * scale,
+            "{label}: forces differ by {:e} of the largest",
+            diff / scale
+        );
+    }
+}
