@@ -158,8 +158,9 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 /// - the continuum models' moving least squares: gradient 37 per live slot and 45, with
 ///   the hourglass control's quadratic fit 42 more per live slot (six monomials, their
 ///   outer product with the displacement difference) and 441 (`B2 - B C^T` 108, `H =
-///   (..) M^-1` 216, `H C` 108, `J - H C` 9), the integration correction 351 (`T E` 108,
-///   `G = V P E^T` 108, `G C` 108, folding them in 27), the packed first pass 92, the gather 110
+///   (..) M^-1` 216, `H C` 108, `J - H C` 9), the integration correction 360 (`T E` 108,
+///   `G = V P E^T` 108, `G C` 108, folding them in 36: `J + T E` 9, `- G C` 9, `- G` 18),
+///   the packed first pass 92, the gather 110
 ///   per live slot (44, and 66 for the quadratic term) and 18; the stress: linear 34,
 ///   point based (Green strain, `F S`) 124, neo-Hookean 79, co-rotated (`R` from its
 ///   quaternion, `R^T F - I`, linear, `R sigma`) 154 plus a shape matching frame; a
@@ -170,7 +171,7 @@ fn bytes_per_node_step(tissue: &Tissue) -> f64 {
 fn flops_per_node_step(label: &str, k: f64, live: f64) -> f64 {
     const INTEGRATE: f64 = 36.0;
     let frame = 43.0 * k + 51.0 + 49.0 + 130.0 * 2.0;
-    let mls = |stress: f64| 79.0 * live + 486.0 + 351.0 + stress + 92.0 + 110.0 * live + 18.0;
+    let mls = |stress: f64| 79.0 * live + 486.0 + 360.0 + stress + 92.0 + 110.0 * live + 18.0;
     INTEGRATE
         + match label {
             "msm" => 31.0 * k + 9.0,
@@ -240,7 +241,8 @@ fn main() {
         "% triad",
         "% peak"
     );
-    // `NEEDLESIM_ROOFLINE_MODELS=msm,deb` measures only those labels (benches/common).
+    // `NEEDLESIM_ROOFLINE_MODELS=msm,deb` measures only those labels (the first column
+    // of the table; benches/common/mod.rs `MODELS`).
     let only: Option<Vec<String>> = std::env::var("NEEDLESIM_ROOFLINE_MODELS")
         .ok()
         .map(|s| s.split(',').map(|m| m.trim().to_string()).collect());

@@ -1,7 +1,9 @@
 // The continuum models' shared first-pass code (models/mls.rs): their bindings, the
 // moving-least-squares displacement gradient J_i of node i with the hourglass control's
-// quadratic fit, and `store`, which packs a stress P_i as [V P A^-1 - c Jf (9 floats),
-// c, c H (18 floats)] in seven vec4 per node for gather_force.wgsl. The node volume V_i is the w lane of its rest position. Each model's
+// quadratic fit and the integration correction (J~ = J + T E, consistency.rs), and
+// `store`, which packs a stress P_i as [V P A^-1 - G C - c Jf (9 floats), c, c H - G (18
+// floats)], G = V P E^T, in seven vec4 per node for gather_force.wgsl. The node volume
+// V_i is the w lane of its rest position. Each model's
 // shader is composed after this one (and after cluster_frame.wgsl, which reads
 // `shape_vector` and `rotation`) and adds its stress and entry points; the `_mixed` entries
 // take node i's constants from `node_material` (models::material_row).

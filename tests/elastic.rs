@@ -95,7 +95,18 @@ fn stretched_bar(material: Material, eps: f64) -> BarResult {
             d(a).total_cmp(&d(c))
         })
         .unwrap();
-    let ainv = mls::moment_row(centre, &rest4, &t.neighbours);
+    // The tissue's own row (with its integration correction), not one built afresh.
+    let ainv: mls::MomentRow = t
+        .shape
+        .bytes()
+        .into_iter()
+        .find(|(a, _)| *a == needlesim::core::models::ShapeArray::InverseMoment)
+        .map(|(_, bytes)| {
+            let rows: &[f32] = bytemuck::cast_slice(bytes);
+            let row = &rows[centre * mls::MOMENT_ROW..(centre + 1) * mls::MOMENT_ROW];
+            std::array::from_fn(|k| row[k])
+        })
+        .expect("a continuum model has moment rows");
     let j = mls::displacement_gradient(centre, &x, &rest4, &t.neighbours, &ainv).j;
     let (lambda, mu) = lame(E, NU);
     let s = point_based::green_stress(&j, lambda as f32, mu as f32);

@@ -896,11 +896,9 @@ fn local_force_evaluations_keep_the_warm_start_rotations() {
 /// 2e-6 on lavapipe; with the shader's gradient correction left out, 0.15).
 #[test]
 fn gpu_and_cpu_agree_on_the_integration_corrections() {
-    use needlesim::core::geometry::{resample::resample, shapes::capsule};
     use needlesim::core::models::consistency::CORRECTION_OFFSET;
     use needlesim::core::scene::{NeoHookeanParams, PointBasedParams};
     use needlesim::CpuBackend;
-    let (r, h) = (0.05, 0.0125);
     let materials = [
         ("deb", Material::debunne(1e4, 0.3)),
         (
@@ -911,17 +909,7 @@ fn gpu_and_cpu_agree_on_the_integration_corrections() {
         ("nh", Material::NeoHookean(NeoHookeanParams::new(1e4, 0.3))),
     ];
     for (label, material) in materials {
-        let scene = Scene::builder()
-            .density(1000.0)
-            .neighbours(18)
-            .box_with_spacing([0.0; 3], [0.1; 3], h)
-            .material(material)
-            .dt(1e-4)
-            .build()
-            .unwrap();
-        let surface = capsule([0.0, -r, 0.0], 2.0 * r, r, 48, 24);
-        let cloud = resample(&surface, h, std::path::Path::new("ball")).unwrap();
-        let tissue = Tissue::from_cloud(&scene, cloud, 0).unwrap();
+        let tissue = resampled_ball(material);
         let n = tissue.n_mesh;
         let largest_correction = tissue
             .shape

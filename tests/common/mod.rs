@@ -208,3 +208,22 @@ pub const OCTAHEDRON_TRIANGLES: [[u32; 3]; 8] = [
     [3, 1, 5],
     [0, 3, 5],
 ];
+
+/// A resampled ball (surface-net vertices over an interior lattice) of radius 5 cm at
+/// 12.5 mm spacing, 463 nodes: the node clouds whose plain nodal integration is not
+/// consistent (`core/src/models/consistency.rs`).
+pub fn resampled_ball(material: Material) -> needlesim::Tissue {
+    use needlesim::core::geometry::{resample::resample, shapes::capsule};
+    let (r, h) = (0.05, 0.0125);
+    let scene = needlesim::Scene::builder()
+        .density(1000.0)
+        .neighbours(18)
+        .box_with_spacing([0.0; 3], [0.1; 3], h)
+        .material(material)
+        .dt(1e-4)
+        .build()
+        .unwrap();
+    let surface = capsule([0.0, -r, 0.0], 2.0 * r, r, 48, 24);
+    let cloud = resample(&surface, h, std::path::Path::new("ball")).unwrap();
+    needlesim::Tissue::from_cloud(&scene, cloud, 0).unwrap()
+}

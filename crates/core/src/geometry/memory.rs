@@ -20,13 +20,24 @@ pub const LATTICE_BYTES_PER_POINT: f64 = 8.0;
 /// velocities, forces and position remainders as 4 x 16 bytes, K neighbour slots of 8 bytes, the model's shape
 /// arrays) twice (the backend's and the node editor's or device's copy), plus what
 /// building needs once (f64 rest position, cell volume and mass, the f32 rest position,
-/// K f64 neighbour distances and the kernel length).
+/// K f64 neighbour distances and the kernel length; for the continuum models, the
+/// integration corrections' solve).
 pub fn bytes_per_node(material: &Material, k: usize) -> f64 {
     let k = k as f64;
     let shape = material.shape_bytes_per_node(k);
     let simulation = 64.0 + 8.0 * k + shape;
     let build = 24.0 + 8.0 + 8.0 + 16.0 + 8.0 * k + 8.0;
-    2.0 * simulation + build
+    // The continuum models' integration corrections (models::consistency) hold about
+    // 1.2 kB of f64 per node while they are solved: M^-1/2 (288), the unknowns, the
+    // search direction and the gradient (3 x 144), two mapped copies (2 x 144), the
+    // residual and target (48) and L^T's output (144).
+    let corrections = match material {
+        Material::DebunneMeshfree(_) | Material::PointBased(_) | Material::NeoHookean(_) => {
+            288.0 + 3.0 * 144.0 + 2.0 * 144.0 + 48.0 + 144.0
+        }
+        _ => 0.0,
+    };
+    2.0 * simulation + build + corrections
 }
 
 /// The nodes a tissue geometry will have, estimated before it is built.

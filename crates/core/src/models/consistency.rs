@@ -46,12 +46,16 @@
 //!
 //! the penalty being the size of the pair weights the correction adds (what the stable
 //! time step feels), by damped conjugate gradients on the normal equations (CGLS) in
-//! the unknowns `M_i^(1/2) V_i E_i`, `M_i = sum_j w_ij t_ij t_ij^T`. Without the penalty
-//! the solve found corrections that met the constraint to 0.3% at the coarsest sphere
-//! but made the critical time step 2e6 times smaller; with `mu` = [`DAMPING`] times the
-//! mean row weight the coarsest sphere's critical step is 8.15e-4 s against 8.82e-4 s
-//! uncorrected, and the constraint's residual falls to 1.1% of the uncorrected one
-//! (2,955 nodes) within about 50 iterations.
+//! the unknowns `M_i^(1/2) V_i E_i`, `M_i = sum_j w_ij t_ij t_ij^T` (pseudo-inverted with
+//! the moment matrices' [`MOMENT_TOLERANCE`], so no direction the neighbours barely span
+//! gets a large correction). Without the penalty the solve found corrections that met
+//! the constraint to 0.3% at the coarsest sphere but made the critical time step 2e6
+//! times smaller; with `mu` = [`DAMPING`] times the mean row weight the step is 12%
+//! shorter than uncorrected (`tests/models.rs`: 7.73e-4 against 8.82e-4 s on a 463-node
+//! ball),
+//! and the constraint's residual falls to about 1% of the uncorrected one within 50 to
+//! 100 iterations. The solve runs on the calling thread (the tissue is built before any
+//! thread pool): about 10 s per 100,000 nodes on the dev machine.
 //!
 //! The forces need no new pass: the correction's stress terms fold into the first pass's
 //! row ([`super::mls::pack_first_pass`]: `G_i = V_i P_i E_i^T` joins the linear part as
@@ -59,26 +63,27 @@
 //!
 //! Measured (report cases, Debunne, `cargo run --release --example report_case`, dev
 //! machine, 2026-11-28), error against the reference before and after: sphere under
-//! pressure (resampled) 6.78 to 3.27% at 463 nodes and 2.09 to 0.79% at 2,955; column
-//! sag (resampled) 5.42 to 3.76% at 1,163 nodes and 4.54 to 3.33% at 2,255; cantilever
-//! and indentation (box lattices) within 0.1 points of before. The column keeps most of
-//! its error: its sag is a quadratic field, which a linear patch test does not cover.
+//! pressure (resampled) 6.78 to 3.20% at 463 nodes and 2.09 to 0.77% at 2,955; column
+//! sag (resampled) 5.42 to 3.80% at 1,163 nodes and 4.54 to 3.36% at 2,255; cantilever
+//! 2.86 to 2.98% (496 nodes) and indentation 12.18 to 12.28% (729), box lattices whose
+//! constraint was nearly met. The column keeps most of its error: its sag is a quadratic
+//! field, which a linear patch test does not cover.
 //!
 //! Node edits (the needle's nodes) keep a node's correction when its row is rewritten
 //! and give a new node none: the constraint is not solved again, so near the needle the
 //! integration is as consistent as the lattice makes it.
 
-use super::mls::MomentRow;
+use super::mls::{MomentRow, MOMENT_TOLERANCE};
 use crate::math::{xyz, Vec4};
 use crate::neighbours::Neighbours;
 use glam::DVec3;
 use nalgebra::{SMatrix, SVector};
-use rayon::prelude::*;
 
 /// The penalty weight `mu` of the solve over the mean row weight `sum_j w_ij` (module
-/// docs). Measured on the report's resampled sphere and column (Debunne): 1e-2 gave
-/// 0.74% / 3.73% (2,955 / 2,255 nodes), 1e-3 0.79% / 3.33%, with the critical step within
-/// 0.5% of each other; 1 halves the correction.
+/// docs). Measured on the report's resampled sphere and column (Debunne, with the
+/// prototype of this solve): 1e-2 gave 0.74% / 3.73% (2,955 / 2,255 nodes), 1e-3 0.79% /
+/// 3.33%, with the critical step within 0.5% of each other; 1 left half the constraint's
+/// residual.
 pub const DAMPING: f64 = 1e-3;
 
 /// Most iterations of the solve; it stops earlier once 10 iterations lower the residual
@@ -99,6 +104,20 @@ pub struct CorrectionFit {
     pub iterations: usize,
 }
 
+/// `t` of a rest offset `d` from the node whose row is `m`: its quadratic monomials less
+/// their linear part, `s(d) - C d`.
+fn orthogonal_monomials(m: &MomentRow, d: DVec3) -> [f64; 6] {
+    let s = super::mls::monomials64(d);
+    std::array::from_fn(|r| {
+        let c = DVec3::new(
+            m[9 + 3 * r] as f64,
+            m[10 + 3 * r] as f64,
+            m[11 + 3 * r] as f64,
+        );
+        s[r] - c.dot(d)
+    })
+}
+
 /// Node `i`'s pairs: neighbour `k` (a node below `n`), weight `w_ik` and `t_ik`.
 fn pairs<'a>(
     i: usize,
@@ -113,22 +132,7 @@ fn pairs<'a>(
         .filter(move |&(_, k, _)| k < n)
         .map(move |(_, k, w)| {
             let d = xyz(rest[k]).as_dvec3() - xi;
-            let s = [
-                d.x * d.x,
-                d.y * d.y,
-                d.z * d.z,
-                d.x * d.y,
-                d.y * d.z,
-                d.z * d.x,
-            ];
-            let t = std::array::from_fn(|r| {
-                let c = DVec3::new(
-                    m[9 + 3 * r] as f64,
-                    m[10 + 3 * r] as f64,
-                    m[11 + 3 * r] as f64,
-                );
-                s[r] - c.dot(d)
-            });
+            let t = orthogonal_monomials(m, d);
             (k, w as f64, d, t)
         })
 }
@@ -198,9 +202,12 @@ pub fn integration_corrections(
     let rows_ro: &[MomentRow] = rows;
     // M_i^(-1/2) (pseudo-inverse: directions no pair spans stay out).
     let root_inv: Vec<SMatrix<f64, 6, 6>> = (0..n)
-        .into_par_iter()
         .map(|i| {
             let mut m = SMatrix::<f64, 6, 6>::zeros();
+            if rest[i][3].is_nan() || rest[i][3] <= 0.0 {
+                // A node without volume takes no correction (its row would be zeroed).
+                return m;
+            }
             for (_, w, _, t) in pairs(i, rest, nb, rows_ro, n) {
                 let t = SVector::<f64, 6>::from(t);
                 m += w * t * t.transpose();
@@ -209,7 +216,7 @@ pub fn integration_corrections(
             let max = eigen.eigenvalues.iter().cloned().fold(0.0, f64::max);
             let mut out = SMatrix::<f64, 6, 6>::zeros();
             for (e, &value) in eigen.eigenvalues.iter().enumerate() {
-                if max > 0.0 && value > 1e-10 * max {
+                if max > 0.0 && value > MOMENT_TOLERANCE * max {
                     let v = eigen.eigenvectors.column(e);
                     out += v * v.transpose() / value.sqrt();
                 }
@@ -219,39 +226,22 @@ pub fn integration_corrections(
         .collect();
     type Six = [DVec3; 6];
     let map = |z: &[Six]| -> Vec<Six> {
-        z.par_iter()
+        z.iter()
             .zip(&root_inv)
             .map(|(z, m)| std::array::from_fn(|r| (0..6).map(|c| m[(r, c)] * z[c]).sum()))
             .collect()
     };
     // L over the scaled unknowns V_i E_i, gathered per node k over its neighbours i (the
     // continuum models' lists are mutual, with equal weights, as their force gather
-    // needs): t_ik = s(d) + C_i d with d = x0_i - x0_k, the monomials being even.
+    // needs), with t_ik in node i's basis.
     let apply = |e: &[Six]| -> Vec<DVec3> {
         (0..n)
-            .into_par_iter()
             .map(|k| {
                 let xk = xyz(rest[k]).as_dvec3();
                 let mut out = DVec3::ZERO;
                 for (_, i, w) in nb.live(k).filter(|&(_, i, _)| i < n) {
-                    let d = xyz(rest[i]).as_dvec3() - xk;
-                    let m = &rows_ro[i];
-                    let s = [
-                        d.x * d.x,
-                        d.y * d.y,
-                        d.z * d.z,
-                        d.x * d.y,
-                        d.y * d.z,
-                        d.z * d.x,
-                    ];
-                    for r in 0..6 {
-                        let c = DVec3::new(
-                            m[9 + 3 * r] as f64,
-                            m[10 + 3 * r] as f64,
-                            m[11 + 3 * r] as f64,
-                        );
-                        out += w as f64 * (s[r] + c.dot(d)) * e[i][r];
-                    }
+                    let t = orthogonal_monomials(&rows_ro[i], xk - xyz(rest[i]).as_dvec3());
+                    out += w as f64 * (0..6).map(|r| t[r] * e[i][r]).sum::<DVec3>();
                 }
                 for (_, w, _, t) in pairs(k, rest, nb, rows_ro, n) {
                     out -= w * (0..6).map(|r| t[r] * e[k][r]).sum::<DVec3>();
@@ -263,7 +253,6 @@ pub fn integration_corrections(
     // L^T (a gather per node).
     let apply_t = |l: &[DVec3]| -> Vec<Six> {
         (0..n)
-            .into_par_iter()
             .map(|i| {
                 let mut e = [DVec3::ZERO; 6];
                 for (k, w, _, t) in pairs(i, rest, nb, rows_ro, n) {

@@ -182,8 +182,8 @@ impl ContinuumConstants {
 pub struct ContinuumArrays {
     /// Rest positions x0, w = the node volume V_i in m^3 ([`NodeVolumes`]).
     pub rest_position: Vec<Vec4>,
-    /// Per node `A_i^-1` (row-major 3x3, the paper's Table 1) and the quadratic basis of
-    /// the hourglass control ([`MomentRow`]).
+    /// Per node `A_i^-1` (row-major 3x3, the paper's Table 1), the quadratic basis of
+    /// the hourglass control and the integration correction ([`MomentRow`]).
     pub inverse_moment: Vec<MomentRow>,
     /// How the volumes were chosen (and a needle node's volume is chosen).
     pub volume_rule: NodeVolumes,
@@ -489,7 +489,8 @@ pub const MOMENT_ROW: usize = 66;
 /// and the inverse of its moment matrix `M_i = sum_j w_ij t_ij t_ij^T`, `t_ij = s_ij - C_i
 /// x_ij` (6x6 symmetric, upper triangle row by row, floats 27..48), with `s_ij` the
 /// quadratic monomials of the rest offset ([`monomials`]), and the integration
-/// correction `E_i` (6x3 row-major, floats 48..66; [`integration_corrections`]). A row
+/// correction `E_i` (6x3 row-major, floats 48..66;
+/// [`super::consistency::integration_corrections`]). A row
 /// whose quadratic part is zero gives the first-order hourglass control (the residual of
 /// the affine fit only); a row whose correction is zero, the plain MLS gradient.
 pub type MomentRow = [f32; MOMENT_ROW];
@@ -517,7 +518,8 @@ pub fn monomials(d: Vec3) -> [f32; 6] {
     ]
 }
 
-fn monomials64(d: glam::DVec3) -> SVector<f64, 6> {
+/// [`monomials`] in f64.
+pub(crate) fn monomials64(d: glam::DVec3) -> SVector<f64, 6> {
     SVector::<f64, 6>::from([
         d.x * d.x,
         d.y * d.y,
@@ -614,7 +616,9 @@ pub fn unpack<const N: usize>(m: &[f32; N]) -> Mat3 {
 /// What the first pass fits to node i's neighbourhood.
 #[derive(Debug, Clone, Copy)]
 pub struct Gradient {
-    /// The displacement gradient `J_i` (the affine fit), which the stress is taken from.
+    /// The corrected displacement gradient `J~_i = J_i + T_i E_i` (the affine fit and
+    /// the integration correction, [`super::consistency`]), which the stress is taken
+    /// from.
     pub j: Mat3,
     /// `sum_j w_ij |x_ij|^2`, for the hourglass stiffness.
     pub trace: f32,
@@ -691,10 +695,10 @@ fn correction_row(moments: &MomentRow, r: usize) -> Vec3 {
     Vec3::new(moments[o], moments[o + 1], moments[o + 2])
 }
 
-/// First-pass result of node i from its stress `P_i`: `[V_i P_i A_i^-1 - c_i Jf_i (9
-/// floats, row-major), c_i, c_i H_i (18 floats, column by column)]` with the hourglass
-/// stiffness `c_i = alpha mu V_i / sum_j w_ij |x_ij|^2` and the fit `Jf_i`, `H_i` of
-/// [`Gradient`].
+/// First-pass result of node i from its stress `P_i`: `[V_i P_i A_i^-1 - G_i C_i - c_i
+/// Jf_i (9 floats, row-major), c_i, c_i H_i - G_i (18 floats, column by column)]` with the
+/// hourglass stiffness `c_i = alpha mu V_i / sum_j w_ij |x_ij|^2`, the fit `Jf_i`, `H_i` of
+/// [`Gradient`] and the integration correction's `G_i = V_i P_i E_i^T` (3x6).
 #[inline]
 pub fn pack_first_pass(
     p: &Mat3,
