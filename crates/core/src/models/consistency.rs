@@ -73,7 +73,7 @@
 //! and give a new node none: the constraint is not solved again, so near the needle the
 //! integration is as consistent as the lattice makes it.
 
-use super::mls::{MomentRow, MOMENT_TOLERANCE};
+use super::mls::{ContinuumArrays, MomentRow, MOMENT_TOLERANCE};
 use crate::math::{xyz, Vec4};
 use crate::neighbours::Neighbours;
 use glam::DVec3;
@@ -90,8 +90,7 @@ pub const DAMPING: f64 = 1e-3;
 /// by less than 0.5% (about 50 on the report's sphere and on a 100k-node box).
 pub const MAX_ITERATIONS: usize = 200;
 
-/// Offset of the correction `E_i` in a [`MomentRow`] (6x3 row-major).
-pub const CORRECTION_OFFSET: usize = 48;
+pub use super::mls::CORRECTION_OFFSET;
 
 /// What the solve reached.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -333,4 +332,21 @@ pub fn integration_corrections(
         relative_residual: residual,
         iterations,
     }
+}
+
+/// Solves the corrections of a continuum model's arrays just built
+/// ([`ContinuumArrays::build`]) for its first `n` nodes ([`integration_corrections`]).
+pub fn correct(
+    arrays: &mut ContinuumArrays,
+    nb: &Neighbours,
+    n: usize,
+    triangles: &[[u32; 3]],
+) -> CorrectionFit {
+    integration_corrections(
+        &arrays.rest_position,
+        nb,
+        n,
+        triangles,
+        &mut arrays.inverse_moment,
+    )
 }

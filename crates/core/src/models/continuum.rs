@@ -62,9 +62,11 @@ impl<L: ContinuumLaw> ContinuumShape<L> {
         n: usize,
         ctx: BuildContext,
     ) -> ContinuumShape<L> {
+        let mut continuum = ContinuumArrays::build(rule, rest, nb, n, ctx);
+        super::consistency::correct(&mut continuum, nb, n, ctx.triangles);
         ContinuumShape {
             params,
-            continuum: ContinuumArrays::build(rule, rest, nb, n, ctx).with_prony(params.prony()),
+            continuum: continuum.with_prony(params.prony()),
         }
     }
 }

@@ -226,10 +226,11 @@ impl TissueModel for DebunneParams {
             shape_vector: shape_vectors(&rest_positions(rest), nb, n),
             rotation: vec![QUAT_IDENTITY; rest.len()],
         });
+        let mut continuum = ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx);
+        super::consistency::correct(&mut continuum, nb, n, ctx.triangles);
         Shape {
             params: *self,
-            continuum: ContinuumArrays::build(self.node_volumes, rest, nb, n, ctx)
-                .with_prony(self.viscoelastic),
+            continuum: continuum.with_prony(self.viscoelastic),
             corotation,
             viscous: self.viscosity > 0.0,
         }

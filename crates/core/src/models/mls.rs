@@ -214,14 +214,7 @@ impl ContinuumArrays {
     ) -> ContinuumArrays {
         let rest_position = super::local_shape_matching::rest_positions(rest);
         let rest_position = with_volumes(rest_position, node_volumes(rule, rest, nb, n, ctx));
-        let mut inverse_moment = moment_rows(&rest_position, nb, n);
-        super::consistency::integration_corrections(
-            &rest_position,
-            nb,
-            n,
-            ctx.triangles,
-            &mut inverse_moment,
-        );
+        let inverse_moment = moment_rows(&rest_position, nb, n);
         ContinuumArrays {
             inverse_moment,
             rest_position,
@@ -334,7 +327,7 @@ impl ContinuumArrays {
         // [`super::consistency`]).
         let mut moments = moment_row(i, rest, nb);
         if !rest_position {
-            let o = super::consistency::CORRECTION_OFFSET;
+            let o = CORRECTION_OFFSET;
             moments[o..].copy_from_slice(&self.inverse_moment[i][o..]);
         }
         let mut out = vec![row(ShapeArray::InverseMoment, i, &[moments])];
@@ -483,6 +476,10 @@ pub fn sym_pseudo_inverse(a: &Matrix3<f64>, rel_tol: f64) -> (Matrix3<f64>, usiz
 
 /// Floats per node of a [`MomentRow`].
 pub const MOMENT_ROW: usize = 66;
+
+/// Offset of the integration correction `E_i` in a [`MomentRow`] (6x3 row-major;
+/// [`super::consistency`]).
+pub const CORRECTION_OFFSET: usize = 48;
 
 /// Node i's moment data: `A_i^-1` (row-major 3x3, floats 0..9), the hourglass control's
 /// quadratic basis `C_i = (sum_j w_ij s_ij x_ij^T) A_i^-1` (6x3 row-major, floats 9..27)
@@ -691,7 +688,7 @@ pub fn displacement_gradient(
 /// Row `r` of node i's integration correction `E_i` in its [`MomentRow`].
 #[inline(always)]
 fn correction_row(moments: &MomentRow, r: usize) -> Vec3 {
-    let o = super::consistency::CORRECTION_OFFSET + 3 * r;
+    let o = CORRECTION_OFFSET + 3 * r;
     Vec3::new(moments[o], moments[o + 1], moments[o + 2])
 }
 
