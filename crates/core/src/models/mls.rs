@@ -323,13 +323,8 @@ impl ContinuumArrays {
         volume_scale: f64,
         rest_position: bool,
     ) -> Vec<ShapeRow> {
-        // A node whose row changes keeps its integration correction (a new node has none;
-        // [`super::consistency`]).
-        let mut moments = moment_row(i, rest, nb);
-        if !rest_position {
-            let o = CORRECTION_OFFSET;
-            moments[o..].copy_from_slice(&self.inverse_moment[i][o..]);
-        }
+        // A rewritten row has no integration correction ([`super::consistency`]).
+        let moments = moment_row(i, rest, nb);
         let mut out = vec![row(ShapeArray::InverseMoment, i, &[moments])];
         if rest_position || self.volume_rule == NodeVolumes::Density {
             let v = added_node_volume(self.volume_rule, i, rest, nb, volume_scale);
@@ -672,13 +667,15 @@ pub fn displacement_gradient(
         hc += Mat3::from_cols(*h * cr.x, *h * cr.y, *h * cr.z);
     }
     // The integration correction: J~ = J + T E, T's column r the fit residual moment t_r.
-    let mut corrected = j;
+    // (`T E` summed first, then added: the association mls.wgsl has, so the backends round
+    // alike.)
+    let mut te = Mat3::ZERO;
     for (r, tr) in t.iter().enumerate() {
         let e = correction_row(moments, r);
-        corrected += Mat3::from_cols(*tr * e.x, *tr * e.y, *tr * e.z);
+        te += Mat3::from_cols(*tr * e.x, *tr * e.y, *tr * e.z);
     }
     Gradient {
-        j: corrected,
+        j: j + te,
         trace,
         fit_j: j - hc,
         hessian,
