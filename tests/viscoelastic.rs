@@ -442,8 +442,8 @@ fn the_viscoelastic_liver_force_rises_with_speed_and_relaxes_when_held() {
 }
 
 /// The GPU holds the viscoelastic state twice (committed and next rows in one buffer):
-/// the device is asked for a storage binding that large, and `needlesim info`'s array list
-/// counts both copies. (At 1M nodes the single copy fitted the 128 MiB binding but the
+/// the device is asked for a storage binding at least that large, and `needlesim info`'s
+/// array list counts both copies. (At 1M nodes the single copy fitted the 128 MiB binding but the
 /// buffer did not: found on an H200, a validation error at bind-group creation.)
 #[test]
 fn the_viscoelastic_state_is_counted_twice() {
@@ -454,7 +454,18 @@ fn the_viscoelastic_state_is_counted_twice() {
     let one = bytes("viscous_state").expect("the committed state");
     assert_eq!(bytes("viscous_state_next"), Some(one));
     assert_eq!(one, 120 * tissue.state.capacity());
-    assert_eq!(needlesim::gpu::largest_buffer(&tissue), 2 * one as u64);
+    // The device's largest binding is the doubled state or a larger array (since the
+    // integration corrections, the 264-byte moment rows).
+    let others = arrays
+        .iter()
+        .filter(|a| !a.name.starts_with("viscous_state"))
+        .map(|a| a.bytes as u64)
+        .max()
+        .unwrap_or(0);
+    assert_eq!(
+        needlesim::gpu::largest_buffer(&tissue),
+        others.max(2 * one as u64)
+    );
 }
 
 /// The GPU stores the viscoelastic state component-major; through the `Backend` API it
