@@ -113,14 +113,7 @@ pub struct CorrectionFit {
 /// their linear part, `s(d) - C d`.
 fn orthogonal_monomials(m: &MomentRow, d: DVec3) -> [f64; 6] {
     let s = super::mls::monomials64(d);
-    std::array::from_fn(|r| {
-        let c = DVec3::new(
-            m[9 + 3 * r] as f64,
-            m[10 + 3 * r] as f64,
-            m[11 + 3 * r] as f64,
-        );
-        s[r] - c.dot(d)
-    })
+    std::array::from_fn(|r| s[r] - super::mls::basis_row(m, r).as_dvec3().dot(d))
 }
 
 /// Node `i`'s pairs: neighbour `k` (a node below `n`), weight `w_ik` and `t_ik`.

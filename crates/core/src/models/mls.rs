@@ -647,9 +647,7 @@ pub fn displacement_gradient(
         trace += w * d0.dot(d0);
     }
     let j = b * unpack(moments);
-    let c: [Vec3; 6] = std::array::from_fn(|r| {
-        Vec3::new(moments[9 + 3 * r], moments[10 + 3 * r], moments[11 + 3 * r])
-    });
+    let c: [Vec3; 6] = std::array::from_fn(|r| basis_row(moments, r));
     let m_inv: [[f32; 6]; 6] = std::array::from_fn(|r| {
         std::array::from_fn(|col| moments[27 + upper6(r.min(col), r.max(col))])
     });
@@ -682,6 +680,12 @@ pub fn displacement_gradient(
     }
 }
 
+/// Row `r` of the hourglass control's quadratic basis `C_i` in a [`MomentRow`].
+#[inline(always)]
+pub(crate) fn basis_row(moments: &MomentRow, r: usize) -> Vec3 {
+    Vec3::new(moments[9 + 3 * r], moments[10 + 3 * r], moments[11 + 3 * r])
+}
+
 /// Row `r` of node i's integration correction `E_i` in its [`MomentRow`].
 #[inline(always)]
 fn correction_row(moments: &MomentRow, r: usize) -> Vec3 {
@@ -712,7 +716,7 @@ pub fn pack_first_pass(
     let gr: [Vec3; 6] = std::array::from_fn(|r| volume * (*p * correction_row(moments, r)));
     let mut gc = Mat3::ZERO;
     for (r, g_r) in gr.iter().enumerate() {
-        let cr = Vec3::new(moments[9 + 3 * r], moments[10 + 3 * r], moments[11 + 3 * r]);
+        let cr = basis_row(moments, r);
         gc += Mat3::from_cols(*g_r * cr.x, *g_r * cr.y, *g_r * cr.z);
     }
     let m = (volume * q - gc - c * g.fit_j).transpose().to_cols_array();
