@@ -32,13 +32,15 @@ use thiserror::Error;
 
 /// First bytes of a checkpoint file.
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
-/// Format version this build writes and reads. Raised whenever the payload changes (10:
+/// Format version this build writes and reads. Raised whenever the payload changes (11:
+/// the tip's element carries its pushing share and that share's handover after an edit,
+/// [`crate::sheath::FreeFade`]; 10:
 /// the continuum models' moment rows carry the integration correction, 66 floats per
 /// node instead of 48; 9: the continuum models' moment rows and first passes carry the hourglass control's
 /// quadratic fit, 48 and 28 floats per node instead of 9 and 12; 8: the scene fingerprint
 /// hashes `[[fixed]]` with its `far_field` key, so a version 7 file is refused as a
 /// version rather than as another scene).
-pub const FORMAT_VERSION: u32 = 10;
+pub const FORMAT_VERSION: u32 = 11;
 const HEADER: usize = MAGIC.len() + 4 + 8 + 4;
 
 /// Why a checkpoint cannot be written, read or restored.

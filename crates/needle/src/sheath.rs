@@ -401,6 +401,49 @@ pub struct FrontElement {
     /// below the resolved tissue (the element's compression, force over stiffness), m;
     /// the material the tip presses on is that far behind it. 0 otherwise.
     pub dent: f64,
+    /// The share of the element that pushed in the last step (1 while the front node is
+    /// at the tip's face, falling to 0 as the tissue carries it on ahead); `None` before
+    /// the first step at a crack front.
+    #[serde(default)]
+    pub free: Option<f64>,
+    /// A node edit's change of that share, being handed over ([`FreeFade`]).
+    #[serde(default)]
+    pub free_fade: Option<FreeFade>,
+}
+
+/// The change a node edit made to the share of the tip's element that pushes, handed
+/// over in time (issue 39: node events the force does not see).
+///
+/// Where the tissue ahead gives way (a soft layer behind a stiffer one, a layer that moves
+/// with the needle), the front node is carried ahead of the tip's face and the element
+/// lets go of it over a refresh distance. An edit at the tip (a node added, the Tip node
+/// refreshed) puts a node back at the face, and the share went from what the carried node
+/// had to 1 in one step: on `layered_liver_biopsy.toml` (CPU, 2026-11-28) the tip force
+/// went 1.94 -> 3.00 N at a node addition in the muscle and the needle force jumped 0.115
+/// N, the run's one jump. The share after an edit is now `free + offset * fade(t)`, with
+/// `offset` the share before the edit less the new node's, faded out as the edit's elastic
+/// change is ([`crate::handover::fade`], over the same time): continuous at the edit, the
+/// new node's own share once the fade is over.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FreeFade {
+    /// The share before the edit less the share of the node after it.
+    pub offset: f64,
+    /// Simulated time of the edit, s.
+    pub started: f64,
+    /// How long it is handed over, s.
+    pub duration: f64,
+}
+
+impl FreeFade {
+    /// What is left of the offset at time `now`.
+    pub fn at(&self, now: f64) -> f64 {
+        self.offset * crate::handover::fade(now - self.started, self.duration)
+    }
+
+    /// Whether the fade is over at time `now`.
+    pub fn done(&self, now: f64) -> bool {
+        now - self.started >= self.duration
+    }
 }
 
 /// The contact patch of the tip on the entry surface (Touching) and, after puncture,
@@ -418,6 +461,17 @@ pub struct Patch {
     /// Weighted axial coordinate of the patch in the needle frame at the last step, m
     /// (`None` before the first step).
     pub mean: Option<f64>,
+    /// Where the surface point the needle touched sits against that mean, along the
+    /// needle, at the first step (m): the Surface node's axial coordinate less the mean.
+    /// The tip has drawn back off the patch when it is behind `mean + offset`. The mean
+    /// alone is not the touched point: on a surface the needle meets at an angle, the
+    /// patch's nodes lie at different depths along the needle, and their weighted mean
+    /// sat up to a few tenths of a millimetre ahead of the tip at first touch, so a
+    /// needle 10 degrees off the normal let go of the surface in its second step and
+    /// passed through the tissue untouched (found 2026-11-28, the liver scene tilted by
+    /// 10 degrees).
+    #[serde(default)]
+    pub offset: f64,
     /// Force of the tip on the patch, N (>= 0).
     pub force: f64,
     /// The entry membrane tearing (after puncture).

@@ -498,6 +498,7 @@ impl Simulation {
         self.state.edit_low = None;
         self.state.edit_shaft = false;
         self.state.edit_refresh = false;
+        self.state.edit_front = None;
         if let Err(e) = self.contact(&prev, &now) {
             // A motion refused as too fast was refused before the contact changed
             // anything: the step leaves no trace and the needle stays at its last pose

@@ -149,6 +149,10 @@ pub(crate) struct NeedleState {
     /// the time to the next refresh).
     #[serde(skip)]
     pub edit_refresh: bool,
+    /// The handover time of this step's edits at the tip, for the tip element's share
+    /// ([`crate::sheath::FreeFade`]); `None` when the step made none.
+    #[serde(skip)]
+    pub edit_front: Option<f64>,
     /// The force on the needle in the last step.
     pub force: NeedleForce,
     pub history: Vec<NeedleSample>,
@@ -193,6 +197,7 @@ impl NeedleState {
             edit_low: None,
             edit_shaft: false,
             edit_refresh: false,
+            edit_front: None,
             force: NeedleForce::default(),
             history: Vec::new(),
             record: true,

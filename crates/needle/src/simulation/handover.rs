@@ -75,6 +75,18 @@ impl Simulation {
         if !self.sheathed() || !(shaft || refresh) {
             return Ok(());
         }
+        // A Shaft, Surface or Exit node event hands over in `HANDOVER_TIME`; a step that
+        // only refreshed the Tip node within the time the tip takes at its speed to the
+        // next refresh, so that refreshes never pile up (module docs); neither cuts short
+        // what is left of a handover running. The tip element's share hands its change
+        // over in the same time ([`crate::sheath::FreeFade`]).
+        let own = match shaft {
+            true => HANDOVER_TIME,
+            false => {
+                refresh_handover_time(self.params.refresh, self.state.advance, self.stepper.dt())
+            }
+        };
+        self.state.edit_front = Some(own);
         // Slots from the first one this step's additions took (or the removals freed) on
         // hold other nodes than before.
         let kept = self.editor.n_mesh() + since;
@@ -110,16 +122,6 @@ impl Simulation {
         if let Some(h) = self.state.handover.as_mut() {
             h.keep_below(kept);
         }
-        // A Shaft, Surface or Exit node event hands over in `HANDOVER_TIME`; a step that
-        // only refreshed the Tip node within the time the tip takes at its speed to the
-        // next refresh, so that refreshes never pile up (module docs); neither cuts short
-        // what is left of a handover running.
-        let own = match shaft {
-            true => HANDOVER_TIME,
-            false => {
-                refresh_handover_time(self.params.refresh, self.state.advance, self.stepper.dt())
-            }
-        };
         let left = self
             .state
             .handover

@@ -314,6 +314,7 @@ impl Simulation {
             surface: 0.0,
             stiffness: 1.0 / compliance,
             mean: None,
+            offset: 0.0,
             force: 0.0,
             tear: None,
         };
@@ -456,7 +457,8 @@ impl Simulation {
                 // and has drawn back past it (under a wide contact the dented surface is
                 // flat, and the cone angle says nothing about contact).
                 if let (Some(p), false) = (&self.state.patch, exit) {
-                    let clear = p.force == 0.0 && p.mean.is_some_and(|m| now.length() < m - 1e-9);
+                    let clear = p.force == 0.0
+                        && p.mean.is_some_and(|m| now.length() < m + p.offset - 1e-9);
                     outcome = match outcome {
                         TouchingOutcome::Release if !clear => TouchingOutcome::Stay,
                         TouchingOutcome::Stay if clear => TouchingOutcome::Release,

@@ -26,7 +26,9 @@ use crate::friction::{
 use crate::handover::{fade, HANDOVER_TIME};
 use crate::needle::Needle;
 use crate::nodes::{NeedleForce, NodeRole};
-use crate::sheath::{front_step, front_viscosity, punch_compliance, sheath_step, SheathStep, Tear};
+use crate::sheath::{
+    front_step, front_viscosity, punch_compliance, sheath_step, FreeFade, SheathStep, Tear,
+};
 use crate::state::{Passage, Written};
 use glam::DVec3;
 use needlesim_core::{NodeField, SimError};
@@ -478,6 +480,9 @@ impl Simulation {
                 Some(tear) => tear.cap(self.state.cut_depth, now),
                 None => self.entry_puncture_force().unwrap_or(f64::INFINITY),
             };
+            if patch.mean.is_none() {
+                patch.offset = c.s[0] - mean;
+            }
             let moved = patch.mean.map_or(0.0, |m| mean - m);
             patch.force = front_step(patch.force, -patch.stiffness * moved, cap);
             patch.mean = Some(mean);
@@ -679,7 +684,25 @@ impl Simulation {
         // refresh distance, and is not driven on ahead of the needle.
         let ahead = c.s[c.front] - c.now.length();
         let refresh = self.params.refresh;
-        let free = ((2.0 * refresh - ahead) / refresh).clamp(0.0, 1.0);
+        let own = ((2.0 * refresh - ahead) / refresh).clamp(0.0, 1.0);
+        // An edit at the tip changes which node is the front, and with it that share:
+        // the change is handed over ([`crate::sheath::FreeFade`]).
+        if let Some(duration) = self.state.edit_front.take() {
+            let left = front
+                .free_fade
+                .map_or(0.0, |f| f.started + f.duration - now)
+                .max(0.0);
+            front.free_fade = front.free.map(|last| FreeFade {
+                offset: last - own,
+                started: now,
+                duration: duration.max(left),
+            });
+        }
+        if front.free_fade.is_some_and(|f| f.done(now)) {
+            front.free_fade = None;
+        }
+        let free = (own + front.free_fade.map_or(0.0, |f| f.at(now))).clamp(0.0, 1.0);
+        front.free = Some(free);
         let (cap, stiffness) = match (front.tear, denting) {
             (None, Some((_, l))) => {
                 // Denting an inner membrane: an elastic element, a punch of the membrane's
