@@ -34,7 +34,8 @@ use thiserror::Error;
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
 /// Format version this build writes and reads. Raised whenever the payload changes (11:
 /// the tip's element carries its pushing share and that share's handover after an edit,
-/// [`crate::sheath::FreeFade`]; 10:
+/// `FrontElement::free` and [`crate::sheath::FreeFade`], and the contact patch the touched
+/// point's place against its mean, `Patch::offset`; 10:
 /// the continuum models' moment rows carry the integration correction, 66 floats per
 /// node instead of 48; 9: the continuum models' moment rows and first passes carry the hourglass control's
 /// quadratic fit, 48 and 28 floats per node instead of 9 and 12; 8: the scene fingerprint

@@ -419,11 +419,14 @@ pub struct FrontElement {
 /// lets go of it over a refresh distance. An edit at the tip (a node added, the Tip node
 /// refreshed) puts a node back at the face, and the share went from what the carried node
 /// had to 1 in one step: on `layered_liver_biopsy.toml` (CPU, 2026-11-28) the tip force
-/// went 1.94 -> 3.00 N at a node addition in the muscle and the needle force jumped 0.115
-/// N, the run's one jump. The share after an edit is now `free + offset * fade(t)`, with
-/// `offset` the share before the edit less the new node's, faded out as the edit's elastic
-/// change is ([`crate::handover::fade`], over the same time): continuous at the edit, the
-/// new node's own share once the fade is over.
+/// went 0.194 -> 0.300 N at a node addition in the muscle and the needle force jumped
+/// 0.115 N, the run's one jump. The share after an edit is now `own + offset * fade(t)`,
+/// `own` the share of the node at the front, `offset` the share before the edit less the
+/// new front node's own, faded out as the edit's elastic change is
+/// ([`crate::handover::fade`], over the same time): continuous at the edit, the new node's
+/// own share once the fade is over. Every edit of a step starts one (a new fade takes
+/// over what is left of a running one and lasts at least as long); a step without a
+/// crack front (Touching, the tip out of the body) drops the share and its fade.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FreeFade {
     /// The share before the edit less the share of the node after it.
@@ -463,6 +466,9 @@ pub struct Patch {
     pub mean: Option<f64>,
     /// Where the surface point the needle touched sits against that mean, along the
     /// needle, at the first step (m): the Surface node's axial coordinate less the mean.
+    /// It is kept from that step: a needle turned while it dents the surface moves the
+    /// touched point against the mean by the patch's lever arm times the turn, which this
+    /// does not follow.
     /// The tip has drawn back off the patch when it is behind `mean + offset`. The mean
     /// alone is not the touched point: on a surface the needle meets at an angle, the
     /// patch's nodes lie at different depths along the needle, and their weighted mean
@@ -497,8 +503,9 @@ pub fn patch_weight(r: f64, radius: f64) -> f64 {
 /// `16 (1 - nu^2) / (3 pi^2 E R)` (Timoshenko and Goodier, Theory of Elasticity, 1970,
 /// section 138).
 ///
-/// Two points closer than `rho = 3 pi R / 16` (`R` the radius of their mean cell, about a
-/// third of a spacing on a lattice face) count as overlapping cells: their pair term is
+/// Two points closer than `rho = 3 pi R / 16` (`R` the radius of a disk of their mean
+/// cell's area; `rho` is about a third of a spacing on a lattice face) count as
+/// overlapping cells: their pair term is
 /// held at `(1 - nu^2) / (pi E rho)`, the self term of such a cell, instead of growing as
 /// `1 / r`. The Surface node is put where the needle's axis meets the surface, so it can
 /// sit next to a lattice node; with the point-load term the pair of them made the
@@ -873,6 +880,23 @@ mod tests {
     }
 
     #[test]
+    fn a_free_fade_starts_at_its_offset_and_is_gone_after_its_time() {
+        let f = FreeFade {
+            offset: -0.4,
+            started: 1.0,
+            duration: 0.04,
+        };
+        assert_eq!(f.at(1.0), -0.4);
+        assert!(!f.done(1.0));
+        // Half way the smoothstep is at one half; the rate is continuous at both ends.
+        assert!((f.at(1.02) + 0.2).abs() < 1e-12);
+        assert!((f.at(1.0 + 1e-6) + 0.4).abs() < 1e-8);
+        assert!(f.at(1.04 - 1e-6).abs() < 1e-8);
+        assert_eq!(f.at(1.05), 0.0);
+        assert!(f.done(1.04) && f.done(1.05));
+    }
+
+    #[test]
     fn points_closer_than_their_cells_count_as_overlapping_cells() {
         let (e, nu) = (1e4, 0.3);
         let area = std::f64::consts::PI * 1e-6; // disks of radius 1 mm
@@ -888,7 +912,7 @@ mod tests {
             patch_compliance(e, nu, &x, &[0.5, 0.5], &[area, area])
         };
         assert!((at(rho) - at(rho * (1.0 + 1e-9))).abs() < 1e-6 * at(rho));
-        assert_eq!(at(0.1 * rho), at(rho));
+        assert!((at(0.1 * rho) - at(rho)).abs() < 1e-12 * at(rho));
         assert!(at(2.0 * rho) < at(rho));
     }
 

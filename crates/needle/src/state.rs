@@ -149,8 +149,9 @@ pub(crate) struct NeedleState {
     /// the time to the next refresh).
     #[serde(skip)]
     pub edit_refresh: bool,
-    /// The handover time of this step's edits at the tip, for the tip element's share
-    /// ([`crate::sheath::FreeFade`]); `None` when the step made none.
+    /// The handover time of this step's edits (any edit of the per-length model's needle
+    /// nodes), for the tip element's share ([`crate::sheath::FreeFade`]); `None` when the
+    /// step made none.
     #[serde(skip)]
     pub edit_front: Option<f64>,
     /// The force on the needle in the last step.

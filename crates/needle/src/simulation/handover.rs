@@ -72,14 +72,16 @@ impl Simulation {
         let mut before = std::mem::take(&mut self.state.before_edits);
         let shaft = std::mem::take(&mut self.state.edit_shaft);
         let refresh = std::mem::take(&mut self.state.edit_refresh);
-        if !self.sheathed() || !(shaft || refresh) {
+        if !self.sheathed() {
             return Ok(());
         }
         // A Shaft, Surface or Exit node event hands over in `HANDOVER_TIME`; a step that
         // only refreshed the Tip node within the time the tip takes at its speed to the
         // next refresh, so that refreshes never pile up (module docs); neither cuts short
         // what is left of a handover running. The tip element's share hands its change
-        // over in the same time ([`crate::sheath::FreeFade`]).
+        // over in the same time after every edit, those that hand no elastic change over
+        // included (a Tip node the tissue carried ahead lifted while advancing, the Tip
+        // node put on: both change the front node; [`crate::sheath::FreeFade`]).
         let own = match shaft {
             true => HANDOVER_TIME,
             false => {
@@ -87,6 +89,9 @@ impl Simulation {
             }
         };
         self.state.edit_front = Some(own);
+        if !(shaft || refresh) {
+            return Ok(());
+        }
         // Slots from the first one this step's additions took (or the removals freed) on
         // hold other nodes than before.
         let kept = self.editor.n_mesh() + since;

@@ -176,6 +176,12 @@ impl Simulation {
                 }
                 _ => usize::MAX,
             };
+            if front >= m {
+                // No crack front: nothing of the tip element's share carries over to the
+                // next one (after an exit and a re-entry, say).
+                self.state.front.free = None;
+                self.state.front.free_fade = None;
+            }
             // The needle nodes' forces, with the tip inside the positions of the mesh
             // nodes around the crack front (for the tissue at the tip), and the positions
             // of the contact patch's nodes, in one read.
