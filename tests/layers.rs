@@ -590,8 +590,11 @@ fn slope(points: &[(f64, f64)]) -> f64 {
 /// layer from h / 4 past its interface (the region hysteresis) to h / 8 before the next
 /// (`deep` to 50 mm, the needle stops at 52), is within 15% of `mu q`. (Measured: 6.75,
 /// 24.4 and 12.1 N/m with the default hourglass control, 2026-11-27; 6.4, 24.2 and 11.9
-/// with the first-order control at 0.1 before it. The `outer` window starts 3 mm in,
-/// after the entry dent has relaxed, and is the farthest off: what is left of the dent's
+/// with the first-order control at 0.1 before it. The `outer` window starts a spacing
+/// (4 mm) in, after the entry dent has relaxed, and is the farthest off (6.46 N/m since
+/// 2026-11-28: the needle enters 0.14 mm from a node, and until the contact patch counted
+/// such a pair as overlapping cells, `needle::sheath::patch_compliance`, the contact there
+/// was too stiff and its dent small; with the deeper dent a window from 3 mm read 7.21): what is left of the dent's
 /// relaxation there depends on how stiff a node is against its neighbours, 8.5 N/m with
 /// the quadratic control at 0.1, 6.6 to 6.8 at 4 to 32. In a soft block held close
 /// behind the needle the slope is mostly elastic drag, not friction: see the guide's
@@ -604,7 +607,7 @@ fn the_friction_slope_changes_at_each_layer_as_its_friction_per_length() {
     let names: Vec<String> = entries(&sim).into_iter().map(|e| e.0).collect();
     assert_eq!(names, ["outer", "middle", "deep"]);
     let h = sim.history();
-    let windows = [(0.003, 0.0095), (0.011, 0.0255), (0.027, 0.05)];
+    let windows = [(0.004, 0.0095), (0.011, 0.0255), (0.027, 0.05)];
     for (k, (lo, hi)) in windows.into_iter().enumerate() {
         let points: Vec<(f64, f64)> = h
             .iter()
