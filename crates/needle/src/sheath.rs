@@ -438,6 +438,28 @@ pub struct FreeFade {
 }
 
 impl FreeFade {
+    /// The fade an edit at time `now` starts: from the share `last` of the step before
+    /// (which holds what is left of a running fade, `previous`) to the new front node's
+    /// `own`, over `duration` or what is left of `previous`, whichever is longer (as
+    /// [`crate::handover::Handover::start`] merges elastic handovers); `None` without a
+    /// share before.
+    pub fn start(
+        last: Option<f64>,
+        own: f64,
+        previous: Option<&FreeFade>,
+        now: f64,
+        duration: f64,
+    ) -> Option<FreeFade> {
+        let left = previous
+            .map_or(0.0, |f| f.started + f.duration - now)
+            .max(0.0);
+        last.map(|last| FreeFade {
+            offset: last - own,
+            started: now,
+            duration: duration.max(left),
+        })
+    }
+
     /// What is left of the offset at time `now`.
     pub fn at(&self, now: f64) -> f64 {
         self.offset * crate::handover::fade(now - self.started, self.duration)
@@ -466,16 +488,15 @@ pub struct Patch {
     pub mean: Option<f64>,
     /// Where the surface point the needle touched sits against that mean, along the
     /// needle, at the first step (m): the Surface node's axial coordinate less the mean.
-    /// It is kept from that step: a needle turned while it dents the surface moves the
-    /// touched point against the mean by the patch's lever arm times the turn, which this
-    /// does not follow.
     /// The tip has drawn back off the patch when it is behind `mean + offset`. The mean
     /// alone is not the touched point: on a surface the needle meets at an angle, the
     /// patch's nodes lie at different depths along the needle, and their weighted mean
     /// sat up to a few tenths of a millimetre ahead of the tip at first touch, so a
     /// needle 10 degrees off the normal let go of the surface in its second step and
     /// passed through the tissue untouched (found 2026-11-28, the liver scene tilted by
-    /// 10 degrees).
+    /// 10 degrees). It is kept from that first step: a needle turned while it dents the
+    /// surface moves the touched point against the mean by the patch's lever arm times
+    /// the turn, which this does not follow.
     #[serde(default)]
     pub offset: f64,
     /// Force of the tip on the patch, N (>= 0).

@@ -694,15 +694,8 @@ impl Simulation {
         // An edit at the tip changes which node is the front, and with it that share:
         // the change is handed over ([`crate::sheath::FreeFade`]).
         if let Some(duration) = self.state.edit_front.take() {
-            let left = front
-                .free_fade
-                .map_or(0.0, |f| f.started + f.duration - now)
-                .max(0.0);
-            front.free_fade = front.free.map(|last| FreeFade {
-                offset: last - own,
-                started: now,
-                duration: duration.max(left),
-            });
+            front.free_fade =
+                FreeFade::start(front.free, own, front.free_fade.as_ref(), now, duration);
         }
         if front.free_fade.is_some_and(|f| f.done(now)) {
             front.free_fade = None;
