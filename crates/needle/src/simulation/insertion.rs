@@ -8,7 +8,8 @@
 //! Tip node exists while `d >= h / 4` past the Surface node (added at `h / 2`), and is
 //! removed and re-added (neighbour refresh) every `tip_refresh * h` of tip motion. The
 //! paper adds nodes at the tip when `d > h`; these margins keep any two needle nodes at
-//! least h / 4 apart.
+//! least h / 4 apart, but for a Shaft node the tissue crowds closer on the way out, which
+//! hands its shaft length over before it goes ([`CROWDED`]; at least h / 10 apart).
 //!
 //! With the per-length friction model, nodes added inside the tissue start slipping with
 //! the velocity of the tissue at the tip (the shaft slides past the tissue it reaches), and
@@ -65,6 +66,19 @@ pub(crate) enum ShaftEdit {
 /// that), so that a node the tissue carries forward a little does not go and come back
 /// every step.
 pub(super) const REMOVE: f64 = 0.3;
+
+/// A Shaft node closer than this many spacings along the shaft to the node before it is
+/// crowded: the tissue carried it there (the shaft behind a dented membrane, compressed
+/// along it, or the tissue dragged out with a withdrawing needle), and it is taken off
+/// ([`Simulation::next_edit`](super::inside)). On the way out with the per-length model
+/// it first hands its shaft length over, as any last Shaft node does, unless it comes
+/// within [`CROWDED_FLOOR`] spacings.
+pub(super) const CROWDED: f64 = 0.25;
+
+/// The closest two needle nodes may come along the shaft before the nearer is taken off
+/// at once, share or not: coincident nodes would leave the meshfree neighbourhoods
+/// singular.
+pub(super) const CROWDED_FLOOR: f64 = 0.1;
 
 /// With the per-length model, the Tip node is taken off once the needle is pulled back
 /// this many spacings behind it (having handed its shaft length over meanwhile).
