@@ -215,8 +215,20 @@ pub fn cluster_frames(
             let i = base + lane_node(lane);
             cluster_matrix(i, positions, rest, shape_vectors[i], nb)
         });
+        // Entry (r, c) of the four lanes' matrices, read in place: through
+        // `frames.map(..)` (a copy of the four frames and an outlined call per entry)
+        // this transpose took a fifth of the shape matching step (perf, peers harness,
+        // 10,648 nodes, dev machine, 2026-11-28).
+        let m = [frames[0].1, frames[1].1, frames[2].1, frames[3].1];
         let a = std::array::from_fn(|r| {
-            std::array::from_fn(|c| Lanes4::from_array(frames.map(|(_, m)| m.col(c)[r])))
+            std::array::from_fn(|c| {
+                Lanes4::new(
+                    m[0].col(c)[r],
+                    m[1].col(c)[r],
+                    m[2].col(c)[r],
+                    m[3].col(c)[r],
+                )
+            })
         });
         let q = std::array::from_fn(|e| {
             Lanes4::from_array(std::array::from_fn(|lane| q4[lane_node(lane)][e]))
