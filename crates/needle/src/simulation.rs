@@ -46,7 +46,8 @@
 //! the tip first touched; Shaft nodes, one per spacing h of insertion; the Tip node at the
 //! tip; the Exit node where the tip reached the far surface. The margins that add and
 //! remove them are [`insertion::shaft_edit`](self); they keep any two needle nodes at least
-//! h / 4 apart.
+//! h / 4 apart, but for a Shaft node the tissue crowds closer on the way out (at least
+//! h / 10 apart while it hands its length over).
 //!
 //! The far side: when the tip leaves the body through its surface, the Tip node is
 //! replaced by an Exit node pinned to the tip (state Touching: the surface dents outwards)

@@ -213,11 +213,11 @@ impl Simulation {
             true => (st.pos[last] - st.pos[last - 1]).dot(st.t),
             false => f64::INFINITY,
         };
-        let handing_over = st.sheathed
-            && !st.advancing
-            && !has_tip
-            && nodes[last].share > 0.0
-            && gap >= CROWDED_FLOOR * h;
+        // (With the Tip node still on, the node keeps its place until the Tip node has
+        // handed its own length over and gone: lifting it here would drop its share.
+        // Held, the node stays as it is; advancing again, it goes at once.)
+        let handing_over =
+            st.sheathed && !st.advancing && nodes[last].share > 0.0 && gap >= CROWDED_FLOOR * h;
         let crowded = role == NodeRole::Shaft && gap < CROWDED * h && !handing_over;
         // With the per-length model the Tip node marks the crack front: it is taken
         // off (and not put back) once the needle is pulled back behind it, and put on
