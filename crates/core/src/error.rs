@@ -142,7 +142,9 @@ pub enum SimError {
     #[error(
         "simulation diverged at step {step}: node {node} has a non-finite {field} (a time \
          step above the stable one is the usual cause: reduce physics.dt, or use dt = \"auto\"; \
-         `needlesim info` prints the critical time step)"
+         `needlesim info` prints the critical time step; \"auto\" sizes the step at the \
+         initial state, and a strongly deformed nonlinear material, point based or \
+         neo-Hookean, can need a smaller one)"
     )]
     Diverged {
         /// Step counter when it was detected.
@@ -156,7 +158,9 @@ pub enum SimError {
     /// unstable (time step too large for the stiffness) and about to overflow.
     #[error(
         "simulation diverged at step {step}: node {node} moves at {speed:.3e} m/s, above \
-         physics.max_speed = {limit} m/s (reduce physics.dt, or use dt = \"auto\")"
+         physics.max_speed = {limit} m/s (reduce physics.dt, or use dt = \"auto\"; \
+         \"auto\" sizes the step at the initial state, and a strongly deformed nonlinear \
+         material, point based or neo-Hookean, can need a smaller one)"
     )]
     Runaway {
         /// Step counter when it was detected.
