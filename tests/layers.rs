@@ -594,8 +594,8 @@ fn slope(points: &[(f64, f64)]) -> f64 {
 /// (4 mm) in, after the entry dent has relaxed, and is the farthest off (6.46 N/m since
 /// 2026-11-28: the needle enters 0.14 mm from a node, and until the contact patch counted
 /// such a pair as overlapping cells, `needle::sheath::patch_compliance`, the contact there
-/// was too stiff and its dent small; with the deeper dent a window from 3 mm read 7.21): what is left of the dent's
-/// relaxation there depends on how stiff a node is against its neighbours, 8.5 N/m with
+/// was too stiff and its dent small; with the deeper dent a window from 3 mm read 7.21):
+/// what is left of the dent's relaxation there depends on how stiff a node is against its neighbours, 8.5 N/m with
 /// the quadratic control at 0.1, 6.6 to 6.8 at 4 to 32. In a soft block held close
 /// behind the needle the slope is mostly elastic drag, not friction: see the guide's
 /// layered tissue chapter.)

@@ -75,6 +75,13 @@ pub(super) const REMOVE: f64 = 0.3;
 /// within [`CROWDED_FLOOR`] spacings.
 pub(super) const CROWDED: f64 = 0.25;
 
+/// Whether a Shaft node `gap` m along the shaft past the node before it is crowded
+/// ([`CROWDED`]): the one rule the edits (`Simulation::next_edit`) and the shares
+/// (`Simulation::update_shares`) share.
+pub(super) fn is_crowded(gap: f64, h: f64) -> bool {
+    gap < CROWDED * h
+}
+
 /// The closest two needle nodes may come along the shaft before the nearer is taken off
 /// at once, share or not: coincident nodes would leave the meshfree neighbourhoods
 /// singular.

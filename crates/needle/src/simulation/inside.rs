@@ -7,7 +7,9 @@
 //! [`Simulation::refresh_tip`] and [`Simulation::far_side`]; then the new nodes take the
 //! shaft's loads and are settled.
 
-use super::insertion::{shaft_edit, ShaftEdit, CROWDED, CROWDED_FLOOR, MAX_STEP_SPACINGS, REMOVE};
+use super::insertion::{
+    is_crowded, shaft_edit, ShaftEdit, CROWDED_FLOOR, MAX_STEP_SPACINGS, REMOVE,
+};
 use super::shaft_loads::FrictionField;
 use super::{at, vec4, Simulation};
 use crate::friction::FrictionState;
@@ -218,7 +220,7 @@ impl Simulation {
         // Held, the node stays as it is; advancing again, it goes at once.)
         let handing_over =
             st.sheathed && !st.advancing && nodes[last].share > 0.0 && gap >= CROWDED_FLOOR * h;
-        let crowded = role == NodeRole::Shaft && gap < CROWDED * h && !handing_over;
+        let crowded = role == NodeRole::Shaft && is_crowded(gap, h) && !handing_over;
         // With the per-length model the Tip node marks the crack front: it is taken
         // off (and not put back) once the needle is pulled back behind it, and put on
         // again only when the needle advances.

@@ -17,7 +17,7 @@
 //! stiffness); after it, the tip's front element carries the cutting force at the crack
 //! front, and a membrane that gives is released over the tear ([`crate::sheath::Tear`]).
 
-use super::insertion::{CROWDED, REMOVE, TIP_SPAN};
+use super::insertion::{is_crowded, REMOVE, TIP_SPAN};
 use super::{vec4, xyz, Simulation};
 use crate::config::Membrane;
 use crate::friction::{
@@ -103,10 +103,10 @@ impl Simulation {
     /// the needle is pulled back over it: a Shaft node's follows the tip's distance past
     /// it, from 1 at h / 2 (where it was added) to 0 at the distance it is removed at; the
     /// Tip node's from 1 with the tip at it to 0 a tenth of a spacing behind it (where it
-    /// is taken off); a Shaft node the tissue crowded onto the node before it while the
-    /// needle is pulled back goes to 0 (it is taken off then). It changes by no more than the tip moved along the needle this step
-    /// allows (a node let go moves towards the tip, which would otherwise hasten its own
-    /// release). The node before takes the rest ([`Simulation::node_lengths`]); every
+    /// is taken off); a Shaft node the tissue crowded onto the node before it
+    /// ([`is_crowded`]) while the needle is pulled back goes to 0 (it is taken off then). It
+    /// changes by no more than the tip moved along the needle this step allows (a node let
+    /// go moves towards the tip, which would otherwise hasten its own release). The node before takes the rest ([`Simulation::node_lengths`]); every
     /// other node keeps its whole length.
     fn update_shares(&mut self, s: &[f64], prev: &Needle, now: &Needle) {
         let h = self.spacing;
@@ -120,9 +120,9 @@ impl Simulation {
             let (target, span) = match n.role {
                 // A last Shaft node the tissue crowded onto the node before it on the
                 // way out hands its whole length over at the same rate, and is removed
-                // once its share is 0 ([`crowded`](super::inside)).
+                // once its share is 0 ([`Simulation::next_edit`]).
                 NodeRole::Shaft
-                    if k + 1 == m && withdrawing && k > 0 && s[k] - s[k - 1] < CROWDED * h =>
+                    if k + 1 == m && withdrawing && k > 0 && is_crowded(s[k] - s[k - 1], h) =>
                 {
                     (0.0, (0.5 - REMOVE) * h)
                 }
