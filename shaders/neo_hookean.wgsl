@@ -3,7 +3,7 @@
 // continued by its tangent below J_MIN. Constants from the uniform parameters
 // (`neo_hookean`) or node i's own [lambda, mu, 0, alpha mu] (`neo_hookean_mixed`).
 
-const J_MIN: f32 = 0.05;
+const J_MIN: f32 = 0.62;
 
 // The stress P of F, with the cofactor matrix and the volume ratio it used.
 struct NeoHookeanStress {

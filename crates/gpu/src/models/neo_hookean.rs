@@ -70,3 +70,18 @@ impl GpuModel for NeoHookeanParams {
         commit_kernels(&shape.continuum)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    /// The shader continues the logarithm below the same volume ratio as the CPU law
+    /// ([`needlesim_core::models::neo_hookean::J_MIN`]).
+    #[test]
+    fn shader_j_min_is_the_cpu_one() {
+        let source = include_str!("../../shaders/neo_hookean.wgsl");
+        let line = format!(
+            "const J_MIN: f32 = {:?};",
+            needlesim_core::models::neo_hookean::J_MIN
+        );
+        assert!(source.contains(&line), "shader lacks `{line}`");
+    }
+}
