@@ -112,30 +112,9 @@ fn deb_corotated_visco(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // Kelvin-Voigt viscosity (debunne_meshfree.rs::viscous_stress), a pass after the first
-// pass that adds V_i sigma_v A_i^-1 to it: sigma_v = 2 eta dev(sym(L_i)), L_i the
-// point-set velocity gradient; co-rotated, of R^T L_i pushed by R (the rotation the first
-// pass stored).
-@group(0) @binding(12) var<storage, read> velocities: array<vec4<f32>>;
-
-fn velocity_gradient(i: u32) -> mat3x3<f32> {
-    let vi = velocities[i].xyz;
-    let x0i = rest[i].xyz;
-    var b = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
-    for (var s = 0u; s < params.k; s++) {
-        let w = nb_weight[slot(i, s)];
-        if w == 0.0 {
-            continue;
-        }
-        let j = nb_index[slot(i, s)];
-        let dv = w * (velocities[j].xyz - vi);
-        let d0 = rest[j].xyz - x0i;
-        b[0] += dv.x * d0;
-        b[1] += dv.y * d0;
-        b[2] += dv.z * d0;
-    }
-    return mat_mul(b, a_inv(i));
-}
-
+// pass that adds V_i sigma_v A_i^-1 to it (kelvin_voigt.wgsl): sigma_v = 2 eta
+// dev(sym(L_i)), L_i the point-set velocity gradient; co-rotated, of R^T L_i pushed by R
+// (the rotation the first pass stored).
 fn add_viscous(i: u32, eta: f32, r: mat3x3<f32>) {
     if eta <= 0.0 {
         return;
@@ -143,12 +122,7 @@ fn add_viscous(i: u32, eta: f32, r: mat3x3<f32>) {
     let l = mat_mul(transpose(r), velocity_gradient(i));
     let d = 0.5 * (l + transpose(l));
     let mean = (d[0].x + d[1].y + d[2].z) / 3.0;
-    let s = mat_mul(r, 2.0 * eta * (d - mean * identity()));
-    let q = rest[i].w * mat_mul(s, a_inv(i));
-    let b = FIRST_PASS_VEC4 * i;
-    first_pass[b] += vec4<f32>(q[0], q[1].x);
-    first_pass[b + 1u] += vec4<f32>(q[1].y, q[1].z, q[2].x, q[2].y);
-    first_pass[b + 2u] += vec4<f32>(q[2].z, 0.0, 0.0, 0.0);
+    add_first_pass_stress(i, mat_mul(r, 2.0 * eta * (d - mean * identity())));
 }
 
 @compute @workgroup_size(64)

@@ -1,7 +1,9 @@
 // First pass of the compressible neo-Hookean model (models/neo_hookean.rs), composed after
 // mls.wgsl: P = mu F + (lambda l(J) - mu) l'(J) cof(F) of F = I + J_i, with l(J) = ln J
 // continued by its tangent below J_MIN. Constants from the uniform parameters
-// (`neo_hookean`) or node i's own [lambda, mu, 0, alpha mu] (`neo_hookean_mixed`).
+// (`neo_hookean`) or node i's own [lambda, mu, eta, alpha mu] (`neo_hookean_mixed`).
+// The Kelvin-Voigt pass (`nh_viscous`, after the first pass; composed after
+// kelvin_voigt.wgsl) adds P_v = F 2 eta dev(sym(F^T L_i)) (continuum.rs).
 
 const J_MIN: f32 = 0.62;
 
@@ -76,4 +78,35 @@ fn neo_hookean_visco_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let m = node_material[i];
     neo_hookean_visco_node(i, m.x, m.y, m.w);
+}
+
+// Kelvin-Voigt viscosity of the finite-strain law (continuum.rs::finite_viscous_stress):
+// the deviator of the Green strain rate sym(F^T L_i), pushed by F.
+fn nh_add_viscous(i: u32, eta: f32) {
+    if eta <= 0.0 {
+        return;
+    }
+    let f = gradient(i).j + identity();
+    let c = mat_mul(transpose(f), velocity_gradient(i));
+    let e = 0.5 * (c + transpose(c));
+    let mean = (e[0].x + e[1].y + e[2].z) / 3.0;
+    add_first_pass_stress(i, mat_mul(f, 2.0 * eta * (e - mean * identity())));
+}
+
+@compute @workgroup_size(64)
+fn nh_viscous(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    nh_add_viscous(i, params.viscosity);
+}
+
+@compute @workgroup_size(64)
+fn nh_viscous_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    nh_add_viscous(i, node_material[i].z);
 }

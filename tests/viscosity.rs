@@ -1,10 +1,12 @@
-//! Tissue viscosity (`viscosity = eta`, the Debunne model's Kelvin-Voigt dashpot,
-//! `needlesim_core::models::debunne_meshfree`) against the continuum law it discretises,
+//! Tissue viscosity (`viscosity = eta`, the Kelvin-Voigt dashpot of the Debunne model,
+//! `needlesim_core::models::debunne_meshfree`, and of the neo-Hookean model, on the Green
+//! strain rate, `needlesim_core::models::continuum`) against the continuum law it discretises,
 //! which does not come from our code: a Newtonian shear dashpot `sigma = 2 eta dev(D)`
 //! dissipates `2 eta |dev D|^2` per unit volume and exerts no force under a rigid motion
 //! or a pure dilatation rate. Plus the stable step it needs (`dt = "auto"`), regions with
 //! their own viscosity, the GPU against the CPU (lavapipe in CI), and bad input.
 
+use needlesim::core::models::neo_hookean::NeoHookeanParams;
 use needlesim::core::scene::{Axis, DebunneParams, FixedSelection, NodeSet};
 use needlesim::core::stability::{damped_critical_dt, max_damping_eigenvalue};
 use needlesim::gpu::{GpuBackend, GpuError};
@@ -39,6 +41,10 @@ fn materials(eta: f64) -> Vec<(&'static str, Material)> {
                     .with_corotated(true)
                     .with_viscosity(eta),
             ),
+        ),
+        (
+            "nh",
+            Material::NeoHookean(NeoHookeanParams::new(E, NU).with_viscosity(eta)),
         ),
     ]
 }
@@ -134,15 +140,24 @@ fn the_dashpot_dissipates_the_continuum_power_of_a_linear_velocity_field() {
 /// order).
 #[test]
 fn any_velocity_field_is_damped_alike_on_both_backends() {
-    let text = r#"
+    for model in [
+        "model = \"debunne_meshfree\"\ncorotated = true",
+        "model = \"neo_hookean\"",
+    ] {
+        any_velocity_field_is_damped_alike(model);
+    }
+}
+
+fn any_velocity_field_is_damped_alike(model: &str) {
+    let text = format!(
+        r#"
         [tissue]
         density = 1000.0
-        geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.04, 0.04, 0.04], spacing = 0.005 }
+        geometry = {{ kind = "box", min = [0.0, 0.0, 0.0], max = [0.04, 0.04, 0.04], spacing = 0.005 }}
         [material]
-        model = "debunne_meshfree"
+        {model}
         young_modulus = 20000.0
         poisson_ratio = 0.45
-        corotated = true
         hourglass = 4.0
         viscosity = 3.0
         [physics]
@@ -151,10 +166,11 @@ fn any_velocity_field_is_damped_alike_on_both_backends() {
         stretch = [1.02, 0.99, 1.0]
         [[region]]
         name = "top"
-        geometry = { kind = "box", min = [-0.001, 0.0225, -0.001], max = [0.041, 0.041, 0.041] }
-        material = { young_modulus = 60000.0, viscosity = 12.0 }
-    "#;
-    let tissue = Tissue::from_toml(text);
+        geometry = {{ kind = "box", min = [-0.001, 0.0225, -0.001], max = [0.041, 0.041, 0.041] }}
+        material = {{ young_modulus = 60000.0, viscosity = 12.0 }}
+    "#
+    );
+    let tissue = Tissue::from_toml(&text);
     let mut seed = 11u64;
     let mut rand = move || {
         seed = seed
@@ -197,7 +213,7 @@ fn any_velocity_field_is_damped_alike_on_both_backends() {
             .map(|x| x.abs())
             .fold(0.0, f64::max);
         eprintln!(
-            "{}: damping power {power:.4e} W, largest damping force {scale:.3e} N",
+            "{model} on {}: damping power {power:.4e} W, largest damping force {scale:.3e} N",
             b.name()
         );
         assert!(
@@ -214,10 +230,10 @@ fn any_velocity_field_is_damped_alike_on_both_backends() {
             .zip(gpu)
             .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
             .fold(0.0, f64::max);
-        eprintln!("GPU - CPU: {diff:.3e} N of {scale:.3e} N");
+        eprintln!("{model}: GPU - CPU: {diff:.3e} N of {scale:.3e} N");
         assert!(
             diff < 1e-4 * scale,
-            "GPU and CPU differ by {diff} N (scale {scale} N)"
+            "{model}: GPU and CPU differ by {diff} N (scale {scale} N)"
         );
     }
 }
@@ -233,11 +249,15 @@ fn any_velocity_field_is_damped_alike_on_both_backends() {
 /// on the CPU; below 1e-5 with the old default 0.1.)
 #[test]
 fn a_rotated_body_is_damped_in_its_own_frame() {
-    let tissue = cube(Material::DebunneMeshfree(
-        DebunneParams::new(E, NU)
-            .with_corotated(true)
-            .with_viscosity(ETA),
-    ));
+    for (label, m) in materials(ETA) {
+        if label != "deb" {
+            rotated_body_is_damped_in_its_own_frame(label, m);
+        }
+    }
+}
+
+fn rotated_body_is_damped_in_its_own_frame(label: &str, material: Material) {
+    let tissue = cube(material);
     let volume: f64 = tissue
         .shape
         .node_volumes(tissue.n_mesh)
@@ -292,11 +312,18 @@ fn a_rotated_body_is_damped_in_its_own_frame() {
         let spin = [[0.0, -1.0, 0.5], [1.0, 0.0, -0.7], [-0.5, 0.7, 0.0]];
         let (spun, _) = damping(b.as_mut(), spin);
         let ratio = spun.iter().flatten().fold(0.0f64, |a, x| a.max(x.abs())) / scale;
-        eprintln!("{}: power error {err:.2e}, spin {ratio:.2e}", b.name());
-        assert!(err < 1e-3, "{}: {power} W against {expected} W", b.name());
+        eprintln!(
+            "{label} on {}: power error {err:.2e}, spin {ratio:.2e}",
+            b.name()
+        );
+        assert!(
+            err < 1e-3,
+            "{label} on {}: {power} W against {expected} W",
+            b.name()
+        );
         assert!(
             ratio < 2e-4,
-            "{}: a spin gives {ratio} of the shear force",
+            "{label} on {}: a spin gives {ratio} of the shear force",
             b.name()
         );
     }
@@ -449,23 +476,33 @@ fn shaken_stays_bounded(tissue: Tissue) -> bool {
 /// both backends alike (the w lane of the node material rows).
 #[test]
 fn each_region_has_its_own_viscosity() {
-    let text = r#"
+    for model in [
+        "model = \"debunne_meshfree\"\ncorotated = true",
+        "model = \"neo_hookean\"",
+    ] {
+        region_has_its_own_viscosity(model);
+    }
+}
+
+fn region_has_its_own_viscosity(model: &str) {
+    let text = format!(
+        r#"
         [tissue]
         density = 1000.0
-        geometry = { kind = "box", min = [0.0, 0.0, 0.0], max = [0.04, 0.04, 0.04], spacing = 0.004 }
+        geometry = {{ kind = "box", min = [0.0, 0.0, 0.0], max = [0.04, 0.04, 0.04], spacing = 0.004 }}
         [material]
-        model = "debunne_meshfree"
+        {model}
         young_modulus = 20000.0
         poisson_ratio = 0.45
-        corotated = true
         [physics]
         dt = 1e-4
         [[region]]
         name = "top"
-        geometry = { kind = "box", min = [-0.001, 0.0235, -0.001], max = [0.041, 0.041, 0.041] }
-        material = { young_modulus = 40000.0, viscosity = 3.0 }
-    "#;
-    let tissue = Tissue::from_toml(text);
+        geometry = {{ kind = "box", min = [-0.001, 0.0235, -0.001], max = [0.041, 0.041, 0.041] }}
+        material = {{ young_modulus = 40000.0, viscosity = 3.0 }}
+    "#
+    );
+    let tissue = Tissue::from_toml(&text);
     assert!(tissue.shape.viscous());
     let shear = linear([[0.0, 1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]);
     let mut results = Vec::new();
@@ -490,7 +527,7 @@ fn each_region_has_its_own_viscosity() {
             .fold(0.0f32, f32::max);
 
         eprintln!(
-            "{}: largest force below {low:.3e} N, on top {high:.3e} N",
+            "{model} on {}: largest force below {low:.3e} N, on top {high:.3e} N",
             b.name()
         );
         assert_eq!(
@@ -524,19 +561,21 @@ fn each_region_has_its_own_viscosity() {
 /// material and in a region's material.
 #[test]
 fn bad_viscosity_is_refused_by_name() {
-    for (value, key) in [
-        ("-1.0", "material.viscosity"),
-        ("nan", "material.viscosity"),
-        ("1e300", "material.viscosity"),
-    ] {
-        let text = format!(
-            "[tissue]\ndensity = 1000.0\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.02, 0.02, 0.02], spacing = 0.005 }}\n\
-             [material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nviscosity = {value}\n"
-        );
-        let e = Scene::from_toml_str(&text, Path::new("."))
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains(key), "viscosity {value}: {e}");
+    for model in ["debunne_meshfree", "neo_hookean"] {
+        for (value, key) in [
+            ("-1.0", "material.viscosity"),
+            ("nan", "material.viscosity"),
+            ("1e300", "material.viscosity"),
+        ] {
+            let text = format!(
+                "[tissue]\ndensity = 1000.0\ngeometry = {{ kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.02, 0.02, 0.02], spacing = 0.005 }}\n\
+                 [material]\nmodel = \"{model}\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nviscosity = {value}\n"
+            );
+            let e = Scene::from_toml_str(&text, Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{model}, viscosity {value}: {e}");
+        }
     }
     let text = "[tissue]\ndensity = 1000.0\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.02, 0.02, 0.02], spacing = 0.005 }\n\
                 [material]\nmodel = \"debunne_meshfree\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\n\

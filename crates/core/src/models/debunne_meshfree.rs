@@ -538,12 +538,7 @@ impl Viscous<'_> {
         if eta > 0.0 {
             let l = velocity_gradient(i, self.velocities, rest, nb, inverse_moment);
             let s = viscous_stress(&l, eta, rotation);
-            let m = (rest[i][3] * s * unpack(inverse_moment))
-                .transpose()
-                .to_cols_array();
-            for (a, b) in q.iter_mut().zip(m) {
-                *a += b;
-            }
+            super::mls::add_first_pass_stress(q, &s, inverse_moment, rest[i][3]);
         }
     }
 }

@@ -729,6 +729,17 @@ pub fn pack_first_pass(
     out
 }
 
+/// Adds a stress `p` to the linear part of a packed first pass: `V_i p A_i^-1`, as
+/// [`pack_first_pass`] writes its stress, without the integration correction's terms
+/// (the viscous stresses: a dashpot's dissipation needs no patch test).
+#[inline]
+pub fn add_first_pass_stress(q: &mut FirstPassRow, p: &Mat3, moments: &MomentRow, volume: f32) {
+    let m = (volume * *p * unpack(moments)).transpose().to_cols_array();
+    for (a, b) in q.iter_mut().zip(m) {
+        *a += b;
+    }
+}
+
 /// Column `m` of `c_i H_i` in a first-pass row.
 #[inline(always)]
 fn hessian_col(q: &FirstPassRow, m: usize) -> Vec3 {

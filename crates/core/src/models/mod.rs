@@ -312,9 +312,19 @@ impl ShapeInfo {
         node_material: Option<Vec<Vec4>>,
     ) -> ShapeInfo {
         let mut model = material.build_shape(rest, nb, n, ctx);
-        // A region's viscosity turns the viscous pass on (the w lane of Debunne's rows).
-        if let (ModelShape::DebunneMeshfree(s), Some(m)) = (&mut model, &node_material) {
-            s.viscous |= m.iter().any(|row| row[3] > 0.0);
+        // A region's viscosity turns the viscous pass on (the w lane of Debunne's rows,
+        // the z lane of the neo-Hookean model's).
+        match (&mut model, &node_material) {
+            (ModelShape::DebunneMeshfree(s), Some(m)) => {
+                s.viscous |= m.iter().any(|row| row[3] > 0.0);
+            }
+            (ModelShape::NeoHookean(s), Some(m)) => {
+                use continuum::ContinuumLaw;
+                s.viscous |= m
+                    .iter()
+                    .any(|row| neo_hookean::NeoHookeanParams::row_viscosity(*row) > 0.0);
+            }
+            _ => {}
         }
         ShapeInfo {
             model,
@@ -379,10 +389,15 @@ impl ShapeInfo {
         self.node_material.as_deref()
     }
 
-    /// Whether the tissue has a viscosity (the Debunne model's Kelvin-Voigt dashpot, in
-    /// some region or everywhere): `dt = "auto"` then sizes the step for it too.
+    /// Whether the tissue has a viscosity (the Kelvin-Voigt dashpot of the Debunne or the
+    /// neo-Hookean model, in some region or everywhere): `dt = "auto"` then sizes the
+    /// step for it too.
     pub fn viscous(&self) -> bool {
-        matches!(&self.model, ModelShape::DebunneMeshfree(s) if s.viscous)
+        match &self.model {
+            ModelShape::DebunneMeshfree(s) => s.viscous,
+            ModelShape::NeoHookean(s) => s.viscous,
+            _ => false,
+        }
     }
 
     /// Whether the model keeps a warm-start rotation per node (array `rotation`).

@@ -80,6 +80,15 @@ pub struct NeoHookeanParams {
     /// modulus is then the instantaneous one.
     #[serde(default, skip_serializing_if = "Prony::is_empty")]
     pub viscoelastic: Prony,
+    /// Shear viscosity eta of a Kelvin-Voigt dashpot beside the elastic law, Pa s
+    /// ([`super::continuum`]: the Green strain rate's deviator, so a rigid spin is not
+    /// damped); 0 (the default): none. Each `[[region]]` may give its own.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub viscosity: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl NeoHookeanParams {
@@ -92,7 +101,14 @@ impl NeoHookeanParams {
             hourglass: default_hourglass(),
             node_volumes: NodeVolumes::Cell,
             viscoelastic: Prony::elastic(),
+            viscosity: 0.0,
         }
+    }
+
+    /// `viscosity`: the Kelvin-Voigt shear viscosity in Pa s.
+    pub const fn with_viscosity(mut self, viscosity: f64) -> Self {
+        self.viscosity = viscosity;
+        self
     }
 
     /// `viscoelastic`: the Prony series.
@@ -176,13 +192,15 @@ impl TissueModel for NeoHookeanParams {
 
     fn validate(&self, key: &str) -> Result<(), SceneError> {
         validate_continuum(key, self.young_modulus, self.poisson_ratio, self.hourglass)?;
-        self.viscoelastic.validate(key)
+        self.viscoelastic.validate(key)?;
+        crate::validate::non_negative_finite(&format!("{key}.viscosity"), self.viscosity)
     }
 
-    /// `[lambda, mu, 0, alpha mu]` (point based animation's layout).
+    /// `[lambda, mu, eta, alpha mu]` (point based animation's layout, with the viscosity
+    /// where it has its volume stiffness).
     fn material_row(&self) -> Vec4 {
         let c = self.constants();
-        [c.lambda, c.mu, 0.0, c.hourglass]
+        [c.lambda, c.mu, self.viscosity as f32, c.hourglass]
     }
 
     /// Rest position, inverse moment and first pass.
@@ -209,6 +227,16 @@ pub type Shape = ContinuumShape<NeoHookeanParams>;
 impl ContinuumLaw for NeoHookeanParams {
     fn law_constants(&self) -> ContinuumConstants {
         self.constants()
+    }
+
+    fn law_viscosity(&self) -> f32 {
+        self.viscosity as f32
+    }
+
+    /// The z lane of `[lambda, mu, eta, alpha mu]`; the law itself reads no volume
+    /// stiffness from it.
+    fn row_viscosity(row: Vec4) -> f32 {
+        row[2]
     }
 
     fn law_first_pass(
@@ -320,7 +348,11 @@ mod tests {
             let (lambda, mu) = crate::scene::lame(1.0, nu);
             let (lambda, mu) = (lambda as f32, mu as f32);
             let rest = lambda + 2.0 * mu;
-            let p11 = |s: f32| stress(&Mat3::from_diagonal(Vec3::new(s, 1.0, 1.0)), lambda, mu).x_axis.x;
+            let p11 = |s: f32| {
+                stress(&Mat3::from_diagonal(Vec3::new(s, 1.0, 1.0)), lambda, mu)
+                    .x_axis
+                    .x
+            };
             let mut largest = 0.0f32;
             for k in 0..=3500 {
                 let s = -0.5 + 1e-3 * k as f32;
@@ -328,7 +360,10 @@ mod tests {
                 let tangent = (p11(s + e) - p11(s - e)) / (2.0 * e);
                 largest = largest.max(tangent / rest);
             }
-            assert!(largest <= 4.0, "nu {nu}: tangent {largest} x the rest value");
+            assert!(
+                largest <= 4.0,
+                "nu {nu}: tangent {largest} x the rest value"
+            );
             if nu == 0.499 {
                 assert!(largest > 3.5, "nu {nu}: largest ratio only {largest}");
             }

@@ -14,6 +14,12 @@ use needlesim_core::models::ShapeArray::{
 
 /// The shared first-pass code a model's first-pass shader is appended to.
 pub const MLS: &str = include_str!("../../shaders/mls.wgsl");
+/// The Kelvin-Voigt viscosity's velocities, velocity gradient and first-pass addition,
+/// composed after [`MLS`] (Debunne and neo-Hookean).
+pub const KELVIN_VOIGT: &str = include_str!("../../shaders/kelvin_voigt.wgsl");
+
+/// The node velocities, for the viscous stress (`kelvin_voigt.wgsl::velocities`).
+pub const VELOCITIES: (u32, Binding) = (12, Binding::Velocities);
 
 /// The first pass's bindings.
 pub const FIRST_PASS: [(u32, Binding); 7] = [

@@ -7,7 +7,8 @@
 
 use super::continuum::{
     commit_kernels, write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO,
-    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS, ROTATION, SHAPE_VECTOR, VISCO,
+    FIRST_PASS_VISCO_MIXED, GATHER_FORCE, KELVIN_VOIGT, MLS, ROTATION, SHAPE_VECTOR, VELOCITIES,
+    VISCO,
 };
 use super::{GpuModel, MATERIAL};
 use crate::buffers::Binding;
@@ -18,6 +19,7 @@ const SOURCES: &[&str] = &[
     COMMON,
     CLUSTER_FRAME,
     MLS,
+    KELVIN_VOIGT,
     include_str!("../../shaders/debunne_meshfree.wgsl"),
 ];
 use needlesim_core::models::debunne_meshfree::{DebunneParams, Shape};
@@ -115,8 +117,6 @@ pub const COROTATED_VISCO: KernelSpec = KernelSpec {
     bindings: &COROTATED_VISCO_BINDINGS,
 };
 
-/// The node velocities, for the viscous stress (`debunne_meshfree.wgsl::velocities`).
-const VELOCITIES: (u32, Binding) = (12, Binding::Velocities);
 const VISCOUS_BINDINGS: [(u32, Binding); 7] = [F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6]];
 const VISCOUS_MIXED_BINDINGS: [(u32, Binding); 8] =
     [F[0], VELOCITIES, F[2], F[3], F[4], F[5], F[6], MATERIAL];

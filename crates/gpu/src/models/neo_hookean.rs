@@ -3,13 +3,45 @@
 
 use super::continuum::{
     commit_kernels, law_force_kernels, write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED,
-    FIRST_PASS_VISCO, FIRST_PASS_VISCO_MIXED, GATHER_FORCE, MLS,
+    FIRST_PASS_VISCO, FIRST_PASS_VISCO_MIXED, GATHER_FORCE, KELVIN_VOIGT, MLS, VELOCITIES,
 };
-use super::GpuModel;
+use super::{GpuModel, MATERIAL};
+use crate::buffers::Binding;
 use crate::kernels::{KernelSpec, COMMON};
 use needlesim_core::models::neo_hookean::{NeoHookeanParams, Shape};
 
-const SOURCES: &[&str] = &[COMMON, MLS, include_str!("../../shaders/neo_hookean.wgsl")];
+const SOURCES: &[&str] = &[
+    COMMON,
+    MLS,
+    KELVIN_VOIGT,
+    include_str!("../../shaders/neo_hookean.wgsl"),
+];
+
+const F: [(u32, Binding); 7] = FIRST_PASS;
+const VISCOUS_BINDINGS: [(u32, Binding); 8] =
+    [F[0], F[1], F[2], F[3], F[4], F[5], F[6], VELOCITIES];
+const VISCOUS_MIXED_BINDINGS: [(u32, Binding); 9] = [
+    F[0], F[1], F[2], F[3], F[4], F[5], F[6], VELOCITIES, MATERIAL,
+];
+
+/// `neo_hookean.wgsl::nh_viscous`: adds the Kelvin-Voigt stress of the Green strain rate
+/// to the first pass, after it ([`finite_viscous_stress`]).
+///
+/// [`finite_viscous_stress`]: needlesim_core::models::continuum::finite_viscous_stress
+pub const VISCOUS: KernelSpec = KernelSpec {
+    name: "neo_hookean/nh_viscous",
+    sources: SOURCES,
+    entry: "nh_viscous",
+    bindings: &VISCOUS_BINDINGS,
+};
+
+/// `neo_hookean.wgsl::nh_viscous_mixed`: [`VISCOUS`] with each node's viscosity.
+pub const VISCOUS_MIXED: KernelSpec = KernelSpec {
+    name: "neo_hookean/nh_viscous_mixed",
+    sources: SOURCES,
+    entry: "nh_viscous_mixed",
+    bindings: &VISCOUS_MIXED_BINDINGS,
+};
 
 /// `neo_hookean.wgsl::neo_hookean`: the neo-Hookean stress of the gradient
 /// ([`neo_hookean::first_pass`]).
@@ -53,17 +85,25 @@ impl GpuModel for NeoHookeanParams {
         &FIRST_MIXED,
         &FIRST_VISCO,
         &FIRST_VISCO_MIXED,
+        &VISCOUS,
+        &VISCOUS_MIXED,
         &GATHER_FORCE,
     ];
 
     fn write_params(&self, params: &mut crate::params::Params) {
         write_constants(self.constants(), params);
         write_prony(&self.viscoelastic, params);
+        params.viscosity = self.viscosity as f32;
     }
 
     fn force_kernels(shape: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
         let entries = [&FIRST, &FIRST_MIXED, &FIRST_VISCO, &FIRST_VISCO_MIXED];
-        law_force_kernels(&shape.continuum, mixed, entries)
+        let mut v = law_force_kernels(&shape.continuum, mixed, entries);
+        if shape.viscous {
+            // Before the gather, after the first pass it adds to.
+            v.insert(1, if mixed { &VISCOUS_MIXED } else { &VISCOUS });
+        }
+        v
     }
 
     fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {

@@ -1,0 +1,34 @@
+// Kelvin-Voigt tissue viscosity, shared by the Debunne model (debunne_meshfree.wgsl) and
+// the neo-Hookean model (neo_hookean.wgsl), composed after mls.wgsl: the node velocities,
+// their point-set gradient L_i (debunne_meshfree.rs::velocity_gradient) and the addition
+// of a viscous stress to a node's first pass (mls.rs::add_first_pass_stress).
+@group(0) @binding(12) var<storage, read> velocities: array<vec4<f32>>;
+
+fn velocity_gradient(i: u32) -> mat3x3<f32> {
+    let vi = velocities[i].xyz;
+    let x0i = rest[i].xyz;
+    var b = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    for (var s = 0u; s < params.k; s++) {
+        let w = nb_weight[slot(i, s)];
+        if w == 0.0 {
+            continue;
+        }
+        let j = nb_index[slot(i, s)];
+        let dv = w * (velocities[j].xyz - vi);
+        let d0 = rest[j].xyz - x0i;
+        b[0] += dv.x * d0;
+        b[1] += dv.y * d0;
+        b[2] += dv.z * d0;
+    }
+    return mat_mul(b, a_inv(i));
+}
+
+// Adds V_i p A_i^-1 to the linear part of node i's first pass (no integration
+// correction: a dashpot's dissipation needs no patch test).
+fn add_first_pass_stress(i: u32, p: mat3x3<f32>) {
+    let q = rest[i].w * mat_mul(p, a_inv(i));
+    let b = FIRST_PASS_VEC4 * i;
+    first_pass[b] += vec4<f32>(q[0], q[1].x);
+    first_pass[b + 1u] += vec4<f32>(q[1].y, q[1].z, q[2].x, q[2].y);
+    first_pass[b + 2u] += vec4<f32>(q[2].z, 0.0, 0.0, 0.0);
+}
