@@ -24,7 +24,8 @@ struct Params {
     visco_a: vec4<f32>,
     visco_b: vec4<f32>,
     viscosity: f32,
-    pad0: f32,
+    // Hourglass alpha alone (point based animation with several materials).
+    hourglass_alpha: f32,
     pad1: f32,
     pad2: f32,
 }

@@ -1,7 +1,9 @@
-// Kelvin-Voigt tissue viscosity, shared by the Debunne model (debunne_meshfree.wgsl) and
-// the neo-Hookean model (neo_hookean.wgsl), composed after mls.wgsl: the node velocities,
-// their point-set gradient L_i (debunne_meshfree.rs::velocity_gradient) and the addition
-// of a viscous stress to a node's first pass (mls.rs::add_first_pass_stress).
+// Kelvin-Voigt tissue viscosity, shared by the Debunne model (debunne_meshfree.wgsl), the
+// neo-Hookean model (neo_hookean.wgsl) and point based animation (point_based.wgsl),
+// composed after mls.wgsl: the node velocities, their point-set gradient L_i
+// (debunne_meshfree.rs::velocity_gradient), the addition of a viscous stress to a node's
+// first pass (mls.rs::add_first_pass_stress), and the finite-strain laws' dashpot
+// (continuum.rs::finite_viscous_stress).
 @group(0) @binding(12) var<storage, read> velocities: array<vec4<f32>>;
 
 fn velocity_gradient(i: u32) -> mat3x3<f32> {
@@ -31,4 +33,17 @@ fn add_first_pass_stress(i: u32, p: mat3x3<f32>) {
     first_pass[b] += vec4<f32>(q[0], q[1].x);
     first_pass[b + 1u] += vec4<f32>(q[1].y, q[1].z, q[2].x, q[2].y);
     first_pass[b + 2u] += vec4<f32>(q[2].z, 0.0, 0.0, 0.0);
+}
+
+// The finite-strain laws' dashpot: P_v = F 2 eta dev(sym(F^T L_i)), the deviator of the
+// Green strain rate pushed by F (frame indifferent), added to node i's first pass.
+fn add_finite_viscous(i: u32, eta: f32) {
+    if eta <= 0.0 {
+        return;
+    }
+    let f = gradient(i).j + identity();
+    let c = mat_mul(transpose(f), velocity_gradient(i));
+    let e = 0.5 * (c + transpose(c));
+    let mean = (e[0].x + e[1].y + e[2].z) / 3.0;
+    add_first_pass_stress(i, mat_mul(f, 2.0 * eta * (e - mean * identity())));
 }

@@ -80,26 +80,13 @@ fn neo_hookean_visco_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     neo_hookean_visco_node(i, m.x, m.y, m.w);
 }
 
-// Kelvin-Voigt viscosity of the finite-strain law (continuum.rs::finite_viscous_stress):
-// the deviator of the Green strain rate sym(F^T L_i), pushed by F.
-fn nh_add_viscous(i: u32, eta: f32) {
-    if eta <= 0.0 {
-        return;
-    }
-    let f = gradient(i).j + identity();
-    let c = mat_mul(transpose(f), velocity_gradient(i));
-    let e = 0.5 * (c + transpose(c));
-    let mean = (e[0].x + e[1].y + e[2].z) / 3.0;
-    add_first_pass_stress(i, mat_mul(f, 2.0 * eta * (e - mean * identity())));
-}
-
 @compute @workgroup_size(64)
 fn nh_viscous(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = node_index(gid);
     if i >= params.n_active {
         return;
     }
-    nh_add_viscous(i, params.viscosity);
+    add_finite_viscous(i, params.viscosity);
 }
 
 @compute @workgroup_size(64)
@@ -108,5 +95,5 @@ fn nh_viscous_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n_active {
         return;
     }
-    nh_add_viscous(i, node_material[i].z);
+    add_finite_viscous(i, node_material[i].z);
 }

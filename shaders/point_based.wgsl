@@ -1,7 +1,8 @@
 // First pass of point based animation (models/point_based.rs), composed after mls.wgsl:
 // P = F S of the Green strain plus the optional volume term, with constants
-// [lambda, mu, k_v, alpha mu] from the uniform parameters (`pba`) or node i's own
-// (`pba_mixed`).
+// [lambda, mu, k_v, alpha mu] from the uniform parameters (`pba`) or from node i's row
+// [lambda, mu, k_v, eta] and the material's alpha (`pba_mixed`). The Kelvin-Voigt pass
+// (`pba_viscous`, after the first pass; kelvin_voigt.wgsl) adds the finite-strain dashpot.
 
 // The second Piola-Kirchhoff stress S of the Green strain of F, constants c = [lambda, mu, ..].
 fn green_stress(f: mat3x3<f32>, c: vec4<f32>) -> mat3x3<f32> {
@@ -42,7 +43,8 @@ fn pba_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n_active {
         return;
     }
-    pba_node(i, node_material[i]);
+    let m = node_material[i];
+    pba_node(i, vec4<f32>(m.x, m.y, m.z, params.hourglass_alpha * m.y));
 }
 
 // Viscoelastic: S relaxes (mls.wgsl::relax_stress), P = F S plus the elastic volume term.
@@ -68,5 +70,24 @@ fn pba_visco_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= params.n_active {
         return;
     }
-    pba_visco_node(i, node_material[i]);
+    let m = node_material[i];
+    pba_visco_node(i, vec4<f32>(m.x, m.y, m.z, params.hourglass_alpha * m.y));
+}
+
+@compute @workgroup_size(64)
+fn pba_viscous(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    add_finite_viscous(i, params.viscosity);
+}
+
+@compute @workgroup_size(64)
+fn pba_viscous_mixed(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = node_index(gid);
+    if i >= params.n_active {
+        return;
+    }
+    add_finite_viscous(i, node_material[i].w);
 }

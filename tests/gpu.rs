@@ -621,7 +621,7 @@ fn read_many_gathers_in_one_readback() {
 /// constant a node row carries differs too (mass-spring damping, Debunne and PBA
 /// hourglass, PBA volume stiffness), so that a kernel reading any lane of the wrong node
 /// or the uniform parameters instead shows.
-const LAYERED: [(&str, &str, &str); 6] = [
+const LAYERED: [(&str, &str, &str); 7] = [
     (
         "msm",
         "model = \"mass_spring\"\nstiffness = 100.0\nspring_damping = 0.01",
@@ -648,12 +648,19 @@ const LAYERED: [(&str, &str, &str); 6] = [
          corotated = true",
         "{ young_modulus = 40000.0, poisson_ratio = 0.3, hourglass = 0.5 }",
     ),
+    // Point based animation's hourglass alpha is one for the whole tissue (its rows hold
+    // the viscosity instead): the region gives a viscosity.
     (
         "pba",
         "model = \"point_based\"\nyoung_modulus = 10000.0\npoisson_ratio = 0.3\n\
-         volume_stiffness = 1000.0",
+         volume_stiffness = 1000.0\nhourglass = 0.5",
         "{ young_modulus = 40000.0, poisson_ratio = 0.3, volume_stiffness = 4000.0, \
-         hourglass = 0.5 }",
+         viscosity = 2.0 }",
+    ),
+    (
+        "nh",
+        "model = \"neo_hookean\"\nyoung_modulus = 10000.0\npoisson_ratio = 0.3",
+        "{ young_modulus = 40000.0, poisson_ratio = 0.3, hourglass = 0.5, viscosity = 2.0 }",
     ),
 ];
 

@@ -7,6 +7,7 @@
 //! their own viscosity, the GPU against the CPU (lavapipe in CI), and bad input.
 
 use needlesim::core::models::neo_hookean::NeoHookeanParams;
+use needlesim::core::models::point_based::PointBasedParams;
 use needlesim::core::scene::{Axis, DebunneParams, FixedSelection, NodeSet};
 use needlesim::core::stability::{damped_critical_dt, max_damping_eigenvalue};
 use needlesim::gpu::{GpuBackend, GpuError};
@@ -45,6 +46,10 @@ fn materials(eta: f64) -> Vec<(&'static str, Material)> {
         (
             "nh",
             Material::NeoHookean(NeoHookeanParams::new(E, NU).with_viscosity(eta)),
+        ),
+        (
+            "pba",
+            Material::PointBased(PointBasedParams::new(E, NU).with_viscosity(eta)),
         ),
     ]
 }
@@ -143,6 +148,7 @@ fn any_velocity_field_is_damped_alike_on_both_backends() {
     for model in [
         "model = \"debunne_meshfree\"\ncorotated = true",
         "model = \"neo_hookean\"",
+        "model = \"point_based\"",
     ] {
         any_velocity_field_is_damped_alike(model);
     }
@@ -479,6 +485,7 @@ fn each_region_has_its_own_viscosity() {
     for model in [
         "model = \"debunne_meshfree\"\ncorotated = true",
         "model = \"neo_hookean\"",
+        "model = \"point_based\"",
     ] {
         region_has_its_own_viscosity(model);
     }
@@ -561,7 +568,7 @@ fn region_has_its_own_viscosity(model: &str) {
 /// material and in a region's material.
 #[test]
 fn bad_viscosity_is_refused_by_name() {
-    for model in ["debunne_meshfree", "neo_hookean"] {
+    for model in ["debunne_meshfree", "neo_hookean", "point_based"] {
         for (value, key) in [
             ("-1.0", "material.viscosity"),
             ("nan", "material.viscosity"),
@@ -585,11 +592,19 @@ fn bad_viscosity_is_refused_by_name() {
     assert!(e.contains("viscosity") && e.contains("skin"), "{e}");
     // Models without the dashpot refuse the key.
     let text = "[tissue]\ndensity = 1000.0\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.02, 0.02, 0.02], spacing = 0.005 }\n\
-                [material]\nmodel = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\nviscosity = 1.0\n";
+                [material]\nmodel = \"mass_spring\"\nstiffness = 100.0\nviscosity = 1.0\n";
     let e = Scene::from_toml_str(text, Path::new("."))
         .unwrap_err()
         .to_string();
     assert!(e.contains("viscosity"), "{e}");
+    // Point based animation's node rows hold the viscosity where the others hold alpha
+    // mu: a region may not have its own hourglass control.
+    let text = "[tissue]\ndensity = 1000.0\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.02, 0.02, 0.02], spacing = 0.005 }\n\
+                [material]\nmodel = \"point_based\"\nyoung_modulus = 1e4\npoisson_ratio = 0.3\n\
+                [[region]]\nname = \"skin\"\ngeometry = { kind = \"box\", min = [0.0, 0.0, 0.0], max = [0.02, 0.02, 0.006] }\nmaterial = { hourglass = 4.0 }\n";
+    let scene = Scene::from_toml_str(text, Path::new(".")).unwrap();
+    let e = Tissue::from_scene(&scene).unwrap_err().to_string();
+    assert!(e.contains("hourglass") && e.contains("skin"), "{e}");
 }
 
 trait FromToml {

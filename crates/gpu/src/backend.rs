@@ -140,7 +140,8 @@ impl GpuBackend {
             visco_a: [0.0; 4],
             visco_b: [0.0; 4],
             viscosity: 0.0,
-            pad: [0.0; 3],
+            hourglass_alpha: 0.0,
+            pad: [0.0; 2],
         };
         let b = |label, bytes: &[u8]| storage(device, label, bytes);
         let model: Vec<(ShapeArray, wgpu::Buffer)> = tissue

@@ -49,10 +49,14 @@ pub struct Params {
     pub visco_a: [f32; 4],
     /// `g_i (tau_i / dt) (1 - a_i)` of each Prony term.
     pub visco_b: [f32; 4],
-    /// Kelvin-Voigt shear viscosity, Pa s (Debunne with one material).
+    /// Kelvin-Voigt shear viscosity, Pa s (Debunne, neo-Hookean, point based animation,
+    /// with one material).
     pub viscosity: f32,
+    /// Hourglass alpha alone (point based animation with several materials: its node rows
+    /// hold the viscosity where the others hold alpha mu).
+    pub hourglass_alpha: f32,
     /// Padding to the WGSL struct's 16-byte size.
-    pub pad: [f32; 3],
+    pub pad: [f32; 2],
 }
 
 #[cfg(test)]
@@ -100,6 +104,7 @@ mod tests {
             ("visco_a", offset_of!(Params, visco_a)),
             ("visco_b", offset_of!(Params, visco_b)),
             ("viscosity", offset_of!(Params, viscosity)),
+            ("hourglass_alpha", offset_of!(Params, hourglass_alpha)),
         ];
         for (name, offset) in &rust {
             let found = wgsl.iter().find(|(n, _)| n == name);

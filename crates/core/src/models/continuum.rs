@@ -7,9 +7,9 @@
 //!
 //! # Tissue viscosity of a finite-strain law (Kelvin-Voigt)
 //!
-//! A law with a viscosity `eta` ([`ContinuumLaw::law_viscosity`]; the neo-Hookean model)
-//! gets, beside its elastic stress, the second Piola-Kirchhoff stress of the deviator of
-//! the Green strain rate,
+//! A law with a viscosity `eta` ([`ContinuumLaw::law_viscosity`]; the neo-Hookean model
+//! and point based animation) gets, beside its elastic stress, the second Piola-Kirchhoff
+//! stress of the deviator of the Green strain rate,
 //!
 //! `S_v = 2 eta dev(E_dot)`,  `E_dot = sym(F^T F_dot)`,  `P_v = F S_v`,
 //!
@@ -60,6 +60,12 @@ pub trait ContinuumLaw: TissueModel + Send + Sync {
     /// for a law without one.
     fn row_viscosity(_row: Vec4) -> f32 {
         0.0
+    }
+
+    /// The constants of a node's `node_material` row (by default the layout
+    /// `[lambda, mu, k_v, alpha mu]` of [`ContinuumConstants::from_row`]).
+    fn row_constants(&self, row: Vec4) -> ContinuumConstants {
+        ContinuumConstants::from_row(row)
     }
 
     /// Node `i`'s stress split for the viscoelastic update ([`StressSplit`]): the
@@ -145,8 +151,9 @@ impl<L: ContinuumLaw> ModelState for ContinuumShape<L> {
             node_material: material,
             ..
         } = *input;
-        let c = self.params.law_constants();
-        let eta = self.params.law_viscosity();
+        let params = &self.params;
+        let c = params.law_constants();
+        let eta = params.law_viscosity();
         let viscous = self.viscous.then_some(input.velocities);
         let ContinuumArrays {
             rest_position,
@@ -163,7 +170,7 @@ impl<L: ContinuumLaw> ModelState for ContinuumShape<L> {
         let threads = input.threads.with_subset(ring.as_deref());
         if visco.is_empty() {
             threads.map_nodes(&mut first[..n], |i| {
-                let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
+                let c = material.map_or(c, |m| params.row_constants(m[i]));
                 let mut q = L::law_first_pass(i, pos, rest, nb, &a_inv[i], rest[i][3], &c);
                 if let Some(v) = viscous {
                     let eta = material.map_or(eta, |m| L::row_viscosity(m[i]));
@@ -175,7 +182,7 @@ impl<L: ContinuumLaw> ModelState for ContinuumShape<L> {
             let coefficients = prony.coefficients(input.dt as f64);
             let prev = &visco[..];
             threads.for_each_node(&mut first[..n], &mut visco_next[..n], |i, out, next| {
-                let c = material.map_or(c, |m| ContinuumConstants::from_row(m[i]));
+                let c = material.map_or(c, |m| params.row_constants(m[i]));
                 let split = L::law_split(i, pos, rest, nb, &a_inv[i], &c);
                 *out = ContinuumArrays::visco_first_pass(
                     &split,

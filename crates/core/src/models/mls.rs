@@ -114,8 +114,9 @@ pub struct ContinuumConstants {
 }
 
 impl ContinuumConstants {
-    /// The constants of point based animation's `node_material` row
-    /// `[lambda, mu, k_v, alpha mu]` ([`super::material_row`]).
+    /// The constants of a `node_material` row `[lambda, mu, k_v, alpha mu]`
+    /// ([`super::material_row`]; each law reads its own layout,
+    /// [`super::continuum::ContinuumLaw::row_constants`]).
     pub fn from_row(row: Vec4) -> ContinuumConstants {
         ContinuumConstants {
             lambda: row[0],

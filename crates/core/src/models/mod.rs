@@ -312,8 +312,8 @@ impl ShapeInfo {
         node_material: Option<Vec<Vec4>>,
     ) -> ShapeInfo {
         let mut model = material.build_shape(rest, nb, n, ctx);
-        // A region's viscosity turns the viscous pass on (the w lane of Debunne's rows,
-        // the z lane of the neo-Hookean model's).
+        // A region's viscosity turns the viscous pass on (the w lane of Debunne's and
+        // point based animation's rows, the z lane of the neo-Hookean model's).
         match (&mut model, &node_material) {
             (ModelShape::DebunneMeshfree(s), Some(m)) => {
                 s.viscous |= m.iter().any(|row| row[3] > 0.0);
@@ -323,6 +323,12 @@ impl ShapeInfo {
                 s.viscous |= m
                     .iter()
                     .any(|row| neo_hookean::NeoHookeanParams::row_viscosity(*row) > 0.0);
+            }
+            (ModelShape::PointBased(s), Some(m)) => {
+                use continuum::ContinuumLaw;
+                s.viscous |= m
+                    .iter()
+                    .any(|row| point_based::PointBasedParams::row_viscosity(*row) > 0.0);
             }
             _ => {}
         }
@@ -389,13 +395,14 @@ impl ShapeInfo {
         self.node_material.as_deref()
     }
 
-    /// Whether the tissue has a viscosity (the Kelvin-Voigt dashpot of the Debunne or the
-    /// neo-Hookean model, in some region or everywhere): `dt = "auto"` then sizes the
+    /// Whether the tissue has a viscosity (the Kelvin-Voigt dashpot of a continuum model,
+    /// in some region or everywhere): `dt = "auto"` then sizes the
     /// step for it too.
     pub fn viscous(&self) -> bool {
         match &self.model {
             ModelShape::DebunneMeshfree(s) => s.viscous,
             ModelShape::NeoHookean(s) => s.viscous,
+            ModelShape::PointBased(s) => s.viscous,
             _ => false,
         }
     }

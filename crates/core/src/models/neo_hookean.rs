@@ -233,10 +233,17 @@ impl ContinuumLaw for NeoHookeanParams {
         self.viscosity as f32
     }
 
-    /// The z lane of `[lambda, mu, eta, alpha mu]`; the law itself reads no volume
-    /// stiffness from it.
+    /// The z lane of `[lambda, mu, eta, alpha mu]`.
     fn row_viscosity(row: Vec4) -> f32 {
         row[2]
+    }
+
+    /// `[lambda, mu, eta, alpha mu]`: no volume stiffness.
+    fn row_constants(&self, row: Vec4) -> ContinuumConstants {
+        ContinuumConstants {
+            volume_stiffness: 0.0,
+            ..ContinuumConstants::from_row(row)
+        }
     }
 
     fn law_first_pass(

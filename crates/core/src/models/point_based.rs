@@ -12,6 +12,12 @@
 //!
 //! Green strain is rotation invariant: any rigid motion gives zero force.
 //!
+//! `viscosity = eta` adds the Kelvin-Voigt dashpot of the finite-strain laws, the
+//! deviator of the Green strain rate (`P_v = F 2 eta dev(sym(F^T F_dot))`,
+//! [`super::continuum`]), per region too. The node rows are `[lambda, mu, k_v, eta]`: the
+//! hourglass alpha is the material's, one for every region (a structural key), and each
+//! node's `alpha mu` follows from its own mu.
+//!
 //! Node volumes `V_i` (w lane of the rest positions) are the nodes' cells by default
 //! ([`NodeVolumes`]). Mueller 2004 (section 4.2) takes them from the density
 //! estimate `rho_i = sum_j m_j W_ij` (`node_volumes = "density"`): with equal masses
@@ -63,6 +69,15 @@ pub struct PointBasedParams {
     /// is then the instantaneous one.
     #[serde(default, skip_serializing_if = "Prony::is_empty")]
     pub viscoelastic: Prony,
+    /// Shear viscosity eta of a Kelvin-Voigt dashpot beside the elastic law, Pa s
+    /// ([`super::continuum`]: the Green strain rate's deviator, so a rigid spin is not
+    /// damped); 0 (the default): none. Each `[[region]]` may give its own.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub viscosity: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl PointBasedParams {
@@ -76,7 +91,14 @@ impl PointBasedParams {
             hourglass: default_hourglass(),
             node_volumes: NodeVolumes::Cell,
             viscoelastic: Prony::elastic(),
+            viscosity: 0.0,
         }
+    }
+
+    /// `viscosity`: the Kelvin-Voigt shear viscosity in Pa s.
+    pub const fn with_viscosity(mut self, viscosity: f64) -> Self {
+        self.viscosity = viscosity;
+        self
     }
 
     /// `viscoelastic`: the Prony series.
@@ -121,7 +143,9 @@ impl TissueModel for PointBasedParams {
         tag: "point_based",
         short_name: "pba",
         label: "point based animation",
-        structural_keys: &["node_volumes", "viscoelastic"],
+        // `hourglass` too: the node rows hold the viscosity where the other continuum
+        // models hold alpha mu, so alpha is one for the whole tissue.
+        structural_keys: &["node_volumes", "viscoelastic", "hourglass"],
     };
 
     fn validate(&self, key: &str) -> Result<(), SceneError> {
@@ -130,13 +154,16 @@ impl TissueModel for PointBasedParams {
         crate::validate::non_negative_finite(
             &format!("{key}.volume_stiffness"),
             self.volume_stiffness,
-        )
+        )?;
+        crate::validate::non_negative_finite(&format!("{key}.viscosity"), self.viscosity)
     }
 
-    /// `[lambda, mu, k_v, alpha mu]`.
+    /// `[lambda, mu, k_v, eta]`: the hourglass alpha is the material's, one for every
+    /// region (a structural key), and alpha mu follows from each node's mu
+    /// ([`ContinuumLaw::row_constants`]).
     fn material_row(&self) -> Vec4 {
         let c = self.constants();
-        [c.lambda, c.mu, c.volume_stiffness, c.hourglass]
+        [c.lambda, c.mu, c.volume_stiffness, self.viscosity as f32]
     }
 
     /// Rest position, inverse moment and first pass (and the viscoelastic state).
@@ -163,6 +190,26 @@ pub type Shape = ContinuumShape<PointBasedParams>;
 impl ContinuumLaw for PointBasedParams {
     fn law_constants(&self) -> ContinuumConstants {
         self.constants()
+    }
+
+    fn law_viscosity(&self) -> f32 {
+        self.viscosity as f32
+    }
+
+    /// The w lane of `[lambda, mu, k_v, eta]`.
+    fn row_viscosity(row: Vec4) -> f32 {
+        row[3]
+    }
+
+    /// `[lambda, mu, k_v, eta]` with the material's alpha times the node's mu (in f32, as
+    /// `point_based.wgsl::pba_mixed` computes it).
+    fn row_constants(&self, row: Vec4) -> ContinuumConstants {
+        ContinuumConstants {
+            lambda: row[0],
+            mu: row[1],
+            volume_stiffness: row[2],
+            hourglass: self.hourglass as f32 * row[1],
+        }
     }
 
     fn law_first_pass(

@@ -21,6 +21,48 @@ pub const KELVIN_VOIGT: &str = include_str!("../../shaders/kelvin_voigt.wgsl");
 /// The node velocities, for the viscous stress (`kelvin_voigt.wgsl::velocities`).
 pub const VELOCITIES: (u32, Binding) = (12, Binding::Velocities);
 
+/// A finite-strain law's viscous pass (`kelvin_voigt.wgsl::add_finite_viscous`): the first
+/// pass's arrays and the velocities.
+pub const FINITE_VISCOUS: [(u32, Binding); 8] = [
+    FIRST_PASS[0],
+    FIRST_PASS[1],
+    FIRST_PASS[2],
+    FIRST_PASS[3],
+    FIRST_PASS[4],
+    FIRST_PASS[5],
+    FIRST_PASS[6],
+    VELOCITIES,
+];
+
+/// [`FINITE_VISCOUS`] and the node materials.
+pub const FINITE_VISCOUS_MIXED: [(u32, Binding); 9] = [
+    FIRST_PASS[0],
+    FIRST_PASS[1],
+    FIRST_PASS[2],
+    FIRST_PASS[3],
+    FIRST_PASS[4],
+    FIRST_PASS[5],
+    FIRST_PASS[6],
+    VELOCITIES,
+    MATERIAL,
+];
+
+/// The force kernels of a finite-strain law ([`law_force_kernels`]) with its viscous pass
+/// (`viscous`: plain and mixed) after the first pass when the tissue is viscous.
+pub fn finite_force_kernels(
+    arrays: &ContinuumArrays,
+    mixed: bool,
+    entries: [&'static KernelSpec; 4],
+    viscous: Option<[&'static KernelSpec; 2]>,
+) -> Vec<&'static KernelSpec> {
+    let mut v = law_force_kernels(arrays, mixed, entries);
+    if let Some(k) = viscous {
+        // Before the gather, after the first pass it adds to.
+        v.insert(1, k[usize::from(mixed)]);
+    }
+    v
+}
+
 /// The first pass's bindings.
 pub const FIRST_PASS: [(u32, Binding); 7] = [
     (0, Params),

@@ -2,11 +2,11 @@
 //! the shared gather, the twins of [`needlesim_core::models::neo_hookean`].
 
 use super::continuum::{
-    commit_kernels, law_force_kernels, write_constants, write_prony, FIRST_PASS, FIRST_PASS_MIXED,
-    FIRST_PASS_VISCO, FIRST_PASS_VISCO_MIXED, GATHER_FORCE, KELVIN_VOIGT, MLS, VELOCITIES,
+    commit_kernels, finite_force_kernels, write_constants, write_prony, FINITE_VISCOUS,
+    FINITE_VISCOUS_MIXED, FIRST_PASS, FIRST_PASS_MIXED, FIRST_PASS_VISCO, FIRST_PASS_VISCO_MIXED,
+    GATHER_FORCE, KELVIN_VOIGT, MLS,
 };
-use super::{GpuModel, MATERIAL};
-use crate::buffers::Binding;
+use super::GpuModel;
 use crate::kernels::{KernelSpec, COMMON};
 use needlesim_core::models::neo_hookean::{NeoHookeanParams, Shape};
 
@@ -17,22 +17,16 @@ const SOURCES: &[&str] = &[
     include_str!("../../shaders/neo_hookean.wgsl"),
 ];
 
-const F: [(u32, Binding); 7] = FIRST_PASS;
-const VISCOUS_BINDINGS: [(u32, Binding); 8] =
-    [F[0], F[1], F[2], F[3], F[4], F[5], F[6], VELOCITIES];
-const VISCOUS_MIXED_BINDINGS: [(u32, Binding); 9] = [
-    F[0], F[1], F[2], F[3], F[4], F[5], F[6], VELOCITIES, MATERIAL,
-];
-
 /// `neo_hookean.wgsl::nh_viscous`: adds the Kelvin-Voigt stress of the Green strain rate
-/// to the first pass, after it ([`finite_viscous_stress`]).
+/// to the first pass, after it (`kelvin_voigt.wgsl::add_finite_viscous`,
+/// [`finite_viscous_stress`]).
 ///
 /// [`finite_viscous_stress`]: needlesim_core::models::continuum::finite_viscous_stress
 pub const VISCOUS: KernelSpec = KernelSpec {
     name: "neo_hookean/nh_viscous",
     sources: SOURCES,
     entry: "nh_viscous",
-    bindings: &VISCOUS_BINDINGS,
+    bindings: &FINITE_VISCOUS,
 };
 
 /// `neo_hookean.wgsl::nh_viscous_mixed`: [`VISCOUS`] with each node's viscosity.
@@ -40,7 +34,7 @@ pub const VISCOUS_MIXED: KernelSpec = KernelSpec {
     name: "neo_hookean/nh_viscous_mixed",
     sources: SOURCES,
     entry: "nh_viscous_mixed",
-    bindings: &VISCOUS_MIXED_BINDINGS,
+    bindings: &FINITE_VISCOUS_MIXED,
 };
 
 /// `neo_hookean.wgsl::neo_hookean`: the neo-Hookean stress of the gradient
@@ -98,12 +92,8 @@ impl GpuModel for NeoHookeanParams {
 
     fn force_kernels(shape: &Shape, mixed: bool) -> Vec<&'static KernelSpec> {
         let entries = [&FIRST, &FIRST_MIXED, &FIRST_VISCO, &FIRST_VISCO_MIXED];
-        let mut v = law_force_kernels(&shape.continuum, mixed, entries);
-        if shape.viscous {
-            // Before the gather, after the first pass it adds to.
-            v.insert(1, if mixed { &VISCOUS_MIXED } else { &VISCOUS });
-        }
-        v
+        let viscous = shape.viscous.then_some([&VISCOUS, &VISCOUS_MIXED]);
+        finite_force_kernels(&shape.continuum, mixed, entries, viscous)
     }
 
     fn end_step_kernels(shape: &Shape) -> Vec<&'static KernelSpec> {
