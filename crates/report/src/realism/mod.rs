@@ -456,6 +456,11 @@ pub fn run_realism(full: bool, progress: &mut dyn FnMut(&str)) -> Result<Realism
                 mat.insert("model".into(), model.into());
                 mat.insert("young_modulus".into(), young.into());
                 mat.insert("poisson_ratio".into(), nu.into());
+                // The same tissue loss as the scene's (the continuum models all take the
+                // Kelvin-Voigt viscosity).
+                if let Some(eta) = liver["material"].get("viscosity") {
+                    mat.insert("viscosity".into(), eta.clone());
+                }
             }
             "local_shape_matching" => {
                 mat.insert("model".into(), "local_shape_matching".into());
