@@ -618,9 +618,9 @@ fn read_many_gathers_in_one_readback() {
 
 /// The two-layer test scenes, per model: (label, `[material]` keys, the `stiff` region's
 /// material). The region (x <= 5 cm, half the cube) is 4 times as stiff, and every other
-/// constant a node row carries differs too (mass-spring damping, Debunne and PBA
-/// hourglass, PBA volume stiffness), so that a kernel reading any lane of the wrong node
-/// or the uniform parameters instead shows.
+/// constant a node row carries differs too (mass-spring damping, Debunne and neo-Hookean
+/// hourglass, point based volume stiffness and viscosity, neo-Hookean viscosity), so that a
+/// kernel reading any lane of the wrong node or the uniform parameters instead shows.
 const LAYERED: [(&str, &str, &str); 7] = [
     (
         "msm",

@@ -143,9 +143,9 @@ pub enum SimError {
         "simulation diverged at step {step}: node {node} has a non-finite {field} (a time \
          step above the stable one is the usual cause: reduce physics.dt, or use dt = \"auto\"; \
          `needlesim info` prints the critical time step; \"auto\" sizes the step at the \
-         initial state; point based animation without material.volume_stiffness has no \
-         energy against a crushed neighbourhood: give it one, about young_modulus, or use \
-         neo_hookean)"
+         initial state, and a strongly deformed nonlinear material can need a smaller \
+         one; with point based animation, a crushed neighbourhood collapses without \
+         material.volume_stiffness: give it one, about young_modulus, or use neo_hookean)"
     )]
     Diverged {
         /// Step counter when it was detected.
@@ -160,9 +160,10 @@ pub enum SimError {
     #[error(
         "simulation diverged at step {step}: node {node} moves at {speed:.3e} m/s, above \
          physics.max_speed = {limit} m/s (reduce physics.dt, or use dt = \"auto\"; \
-         \"auto\" sizes the step at the initial state; point based animation without \
-         material.volume_stiffness has no energy against a crushed neighbourhood: give it \
-         one, about young_modulus, or use neo_hookean)"
+         \"auto\" sizes the step at the initial state, and a strongly deformed nonlinear \
+         material can need a smaller one; with point based animation, a crushed \
+         neighbourhood collapses without material.volume_stiffness: give it one, about \
+         young_modulus, or use neo_hookean)"
     )]
     Runaway {
         /// Step counter when it was detected.

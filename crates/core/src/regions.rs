@@ -229,8 +229,8 @@ pub fn region_material(scene: &Scene, spec: &RegionSpec) -> Result<Material, Sce
         SceneError::invalid(
             format!("{key}.{k}"),
             format!(
-                "must equal material.{k}: it changes the model's structure, which all regions \
-                 share (leave it out to inherit it)"
+                "must equal material.{k}: it is one for the whole tissue (it sets the \
+                 model's structure or its node rows' layout; leave it out to inherit it)"
             ),
         )
     };

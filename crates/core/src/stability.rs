@@ -8,8 +8,8 @@
 //! evaluation, so it works for every model and backend without a model-specific bound
 //! (Gershgorin bounds are looser and differ per model). Fixed nodes are left out.
 //!
-//! A viscous material (the Kelvin-Voigt dashpot of the Debunne or neo-Hookean model) adds
-//! the damping `C v`. Symplectic Euler with it taken explicitly is stable for a mode with `M^-1 K`
+//! A viscous material (the Kelvin-Voigt dashpot of a continuum model) adds the damping
+//! `C v`. Symplectic Euler with it taken explicitly is stable for a mode with `M^-1 K`
 //! eigenvalue `k` and `M^-1 C` eigenvalue `c` when `dt^2 k + 2 dt c < 4` (its
 //! amplification matrix has determinant `1 - dt c` and trace `2 - dt^2 k - dt c`; Jury's
 //! conditions). [`max_damping_eigenvalue`] finds the largest `c` the same way, on

@@ -53,7 +53,7 @@ pub struct Params {
     /// with one material).
     pub viscosity: f32,
     /// Hourglass alpha alone (point based animation with several materials: its node rows
-    /// hold the viscosity where the others hold alpha mu).
+    /// hold the viscosity where the neo-Hookean model's hold alpha mu).
     pub hourglass_alpha: f32,
     /// Padding to the WGSL struct's 16-byte size.
     pub pad: [f32; 2],

@@ -32,7 +32,11 @@ use thiserror::Error;
 
 /// First bytes of a checkpoint file.
 pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
-/// Format version this build writes and reads. Raised whenever the payload changes (11:
+/// Format version this build writes and reads. Raised whenever the payload changes (12:
+/// the neo-Hookean and point based materials carry a `viscosity` (the fingerprint's
+/// material text changed), point based animation's node rows hold it where they held
+/// alpha mu, and the fingerprint hashes the `[[region]]` list (a region's own material
+/// fills the node rows a checkpoint restores); 11:
 /// the tip's element carries its pushing share and that share's handover after an edit,
 /// `FrontElement::free` and [`crate::sheath::FreeFade`], and the contact patch the touched
 /// point's place against its mean, `Patch::offset`; 10:
@@ -41,7 +45,7 @@ pub const MAGIC: &[u8] = b"NEEDLESIM-CHECKPOINT\n";
 /// quadratic fit, 48 and 28 floats per node instead of 9 and 12; 8: the scene fingerprint
 /// hashes `[[fixed]]` with its `far_field` key, so a version 7 file is refused as a
 /// version rather than as another scene).
-pub const FORMAT_VERSION: u32 = 11;
+pub const FORMAT_VERSION: u32 = 12;
 const HEADER: usize = MAGIC.len() + 4 + 8 + 4;
 
 /// Why a checkpoint cannot be written, read or restored.
@@ -372,9 +376,10 @@ impl Checkpoint {
 pub(crate) fn fingerprint(scene: &Scene, positions: &[Vec4]) -> Vec<(String, u32)> {
     // Debug output of floats is exact (shortest round-trip form), so equal text is equal
     // values.
-    let parts: [(&str, String); 8] = [
+    let parts: [(&str, String); 9] = [
         ("tissue", format!("{:?}", scene.tissue)),
         ("material", format!("{:?}", scene.material)),
+        ("region", format!("{:?}", scene.region)),
         ("physics", format!("{:?}", scene.physics)),
         ("fixed", format!("{:?}", scene.fixed)),
         ("prescribed", format!("{:?}", scene.prescribed)),

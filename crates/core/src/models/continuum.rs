@@ -13,29 +13,38 @@
 //!
 //! `S_v = 2 eta dev(E_dot)`,  `E_dot = sym(F^T F_dot)`,  `P_v = F S_v`,
 //!
-//! with `F_dot = L_i` the point-set velocity gradient of node i (the operator of `J_i`
-//! applied to the velocities, [`super::debunne_meshfree::velocity_gradient`]). It is the
-//! Debunne model's dashpot `2 eta dev(sym(L))` at small strain, and it is frame
-//! indifferent at any strain: a rigid spin has `F^T F_dot` skew, so `E_dot = 0` and no
-//! force, where `2 eta dev(sym(F_dot))` would brake a body that turns. Its power
-//! `P_v : F_dot = S_v : E_dot = 2 eta |dev E_dot|^2` is never negative, so it only
-//! dissipates (`tests/viscosity.rs` measures both). Shear only, as the Debunne model's
+//! with `F_dot = L_i` the point-set velocity gradient of node i,
+//! `sum_j w_ij (v_j - v_i) (x0_j - x0_i)^T A_i^-1` (as
+//! [`super::debunne_meshfree::velocity_gradient`]), and `F` the same operator applied to
+//! the positions ([`point_set_gradients`], one loop over the neighbours for both; not the
+//! integration-corrected gradient of the elastic law, whose correction term would make
+//! `F^T F_dot` of a spinning, non-uniformly deformed neighbourhood other than skew). It is
+//! the Debunne model's dashpot `2 eta dev(sym(L))` at small strain, and it is frame
+//! indifferent at any strain: a rigid spin `v = W x + c` has `F_dot = W F`, `F^T F_dot`
+//! skew, so `E_dot = 0` and no force, where `2 eta dev(sym(F_dot))` would brake a body
+//! that turns. Its power `P_v : F_dot = S_v : E_dot = 2 eta |dev E_dot|^2` is never
+//! negative, so it only dissipates (`tests/viscosity.rs` measures both, the spin on a
+//! quadratically deformed body too). Shear only at small strain, as the Debunne model's
 //! (the reasons are there: tissue's bulk viscosity is small, and a bulk dashpot would damp
-//! the compression modes that set the step). Each region may have its own `eta` (the
-//! law's lane of the `node_material` row, [`ContinuumLaw::row_viscosity`]).
+//! the compression modes that set the step); at finite strain the deviator is taken in the
+//! reference frame, so a volume change rate of a strained neighbourhood is damped a
+//! little: for `F = diag(s, 1, 1)` a dilatation rate `a I` gives
+//! `dev(E_dot) = a (s^2 - 1) / 3 diag(2, -1, -1)`, 7% of `a` at 10% stretch. (The spatial
+//! form `J 2 eta dev(sym(F_dot F^-1)) F^-T` has none of it but divides by `J`, which a
+//! crushed neighbourhood takes to 0.) Each region may have its own `eta` (the law's lane
+//! of the `node_material` row, [`ContinuumLaw::row_viscosity`]).
 
 use super::mls::{
     ContinuumArrays, ContinuumConstants, FirstPassRow, MomentRow, NodeVolumes, StressSplit,
 };
 use super::traits::{BuildContext, ForceInput, ModelState, ShapeArray, ShapeRow, TissueModel};
-use crate::math::Vec4;
+use crate::math::{xyz, Vec4};
 use crate::neighbours::Neighbours;
 use glam::{Mat3, Vec3};
 
 /// A per-node hyperelastic law on the moving-least-squares gradient.
 pub trait ContinuumLaw: TissueModel + Send + Sync {
-    /// The constants the kernels use, and the layout of the model's `node_material` row
-    /// ([`ContinuumConstants::from_row`]).
+    /// The constants the kernels use with one material.
     fn law_constants(&self) -> ContinuumConstants;
 
     /// The first pass of node `i` ([`super::mls::pack_first_pass`] of the law's stress).
@@ -62,11 +71,9 @@ pub trait ContinuumLaw: TissueModel + Send + Sync {
         0.0
     }
 
-    /// The constants of a node's `node_material` row (by default the layout
-    /// `[lambda, mu, k_v, alpha mu]` of [`ContinuumConstants::from_row`]).
-    fn row_constants(&self, row: Vec4) -> ContinuumConstants {
-        ContinuumConstants::from_row(row)
-    }
+    /// The constants of a node's `node_material` row, in the law's own layout
+    /// ([`TissueModel::material_row`]).
+    fn row_constants(&self, row: Vec4) -> ContinuumConstants;
 
     /// Node `i`'s stress split for the viscoelastic update ([`StressSplit`]): the
     /// elastic stress of [`ContinuumLaw::law_first_pass`] written as `push S + extra`.
@@ -234,8 +241,33 @@ fn add_viscous(
     if eta <= 0.0 {
         return;
     }
-    let g = super::mls::displacement_gradient(i, positions, rest, nb, inverse_moment);
-    let f_dot = super::debunne_meshfree::velocity_gradient(i, velocities, rest, nb, inverse_moment);
-    let p = finite_viscous_stress(&(g.j + Mat3::IDENTITY), &f_dot, eta);
+    let (f, f_dot) = point_set_gradients(i, positions, velocities, rest, nb, inverse_moment);
+    let p = finite_viscous_stress(&f, &f_dot, eta);
     super::mls::add_first_pass_stress(q, &p, inverse_moment, rest[i][3]);
+}
+
+/// The point-set gradients of the positions and of the velocities of node i,
+/// `sum_j w_ij (x_j - x_i) (x0_j - x0_i)^T A_i^-1` and the same of `v` (module docs: one
+/// operator for both, so that a rigid spin gives `F_dot = W F`), in one loop over the
+/// neighbours (`kelvin_voigt.wgsl::point_set_gradients` sums in the same order).
+#[inline]
+pub fn point_set_gradients(
+    i: usize,
+    positions: &[Vec4],
+    velocities: &[Vec4],
+    rest: &[Vec4],
+    nb: &Neighbours,
+    inverse_moment: &MomentRow,
+) -> (Mat3, Mat3) {
+    let (xi, vi, x0i) = (xyz(positions[i]), xyz(velocities[i]), xyz(rest[i]));
+    let (mut bx, mut bv) = (Mat3::ZERO, Mat3::ZERO);
+    for (_, j, w) in nb.live(i) {
+        let d0 = xyz(rest[j]) - x0i;
+        let dx = w * (xyz(positions[j]) - xi);
+        let dv = w * (xyz(velocities[j]) - vi);
+        bx += Mat3::from_cols(dx * d0.x, dx * d0.y, dx * d0.z);
+        bv += Mat3::from_cols(dv * d0.x, dv * d0.y, dv * d0.z);
+    }
+    let a_inv = super::mls::unpack(inverse_moment);
+    (bx * a_inv, bv * a_inv)
 }

@@ -114,9 +114,9 @@ pub struct ContinuumConstants {
 }
 
 impl ContinuumConstants {
-    /// The constants of a `node_material` row `[lambda, mu, k_v, alpha mu]`
-    /// ([`super::material_row`]; each law reads its own layout,
-    /// [`super::continuum::ContinuumLaw::row_constants`]).
+    /// The constants of a row `[lambda, mu, k_v, alpha mu]` (the neo-Hookean model's
+    /// `node_material` row is read through it with `k_v` then set to 0; each law reads its
+    /// own layout, [`super::continuum::ContinuumLaw::row_constants`]).
     pub fn from_row(row: Vec4) -> ContinuumConstants {
         ContinuumConstants {
             lambda: row[0],

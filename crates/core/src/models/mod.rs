@@ -396,8 +396,7 @@ impl ShapeInfo {
     }
 
     /// Whether the tissue has a viscosity (the Kelvin-Voigt dashpot of a continuum model,
-    /// in some region or everywhere): `dt = "auto"` then sizes the
-    /// step for it too.
+    /// in some region or everywhere): `dt = "auto"` then sizes the step for it too.
     pub fn viscous(&self) -> bool {
         match &self.model {
             ModelShape::DebunneMeshfree(s) => s.viscous,

@@ -15,7 +15,7 @@ use needlesim_core::models::ShapeArray::{
 /// The shared first-pass code a model's first-pass shader is appended to.
 pub const MLS: &str = include_str!("../../shaders/mls.wgsl");
 /// The Kelvin-Voigt viscosity's velocities, velocity gradient and first-pass addition,
-/// composed after [`MLS`] (Debunne and neo-Hookean).
+/// composed after [`MLS`] (Debunne, neo-Hookean and point based animation).
 pub const KELVIN_VOIGT: &str = include_str!("../../shaders/kelvin_voigt.wgsl");
 
 /// The node velocities, for the viscous stress (`kelvin_voigt.wgsl::velocities`).
