@@ -121,6 +121,14 @@ impl<L: ContinuumLaw> ContinuumShape<L> {
     }
 }
 
+impl<L: ContinuumLaw> ContinuumShape<L> {
+    /// Turns the viscous pass on when some node's material row has a viscosity
+    /// ([`ContinuumLaw::row_viscosity`]; a region's own `viscosity`).
+    pub fn note_row_viscosity(&mut self, rows: &[Vec4]) {
+        self.viscous |= rows.iter().any(|row| L::row_viscosity(*row) > 0.0);
+    }
+}
+
 impl<L: ContinuumLaw> ModelState for ContinuumShape<L> {
     fn arrays(&self) -> Vec<(ShapeArray, &[u8])> {
         self.continuum.arrays()

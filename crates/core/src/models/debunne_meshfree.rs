@@ -544,7 +544,8 @@ impl Viscous<'_> {
 }
 
 /// The point-set velocity gradient `L_i = sum_j w_ij (v_j - v_i) (x0_j - x0_i)^T A_i^-1`
-/// (the operator of [`super::mls::displacement_gradient`] applied to velocities).
+/// (the operator of [`super::mls::displacement_gradient`] before its integration
+/// correction, applied to the velocities).
 #[inline]
 pub fn velocity_gradient(
     i: usize,

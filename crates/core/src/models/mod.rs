@@ -318,18 +318,8 @@ impl ShapeInfo {
             (ModelShape::DebunneMeshfree(s), Some(m)) => {
                 s.viscous |= m.iter().any(|row| row[3] > 0.0);
             }
-            (ModelShape::NeoHookean(s), Some(m)) => {
-                use continuum::ContinuumLaw;
-                s.viscous |= m
-                    .iter()
-                    .any(|row| neo_hookean::NeoHookeanParams::row_viscosity(*row) > 0.0);
-            }
-            (ModelShape::PointBased(s), Some(m)) => {
-                use continuum::ContinuumLaw;
-                s.viscous |= m
-                    .iter()
-                    .any(|row| point_based::PointBasedParams::row_viscosity(*row) > 0.0);
-            }
+            (ModelShape::NeoHookean(s), Some(m)) => s.note_row_viscosity(m),
+            (ModelShape::PointBased(s), Some(m)) => s.note_row_viscosity(m),
             _ => {}
         }
         ShapeInfo {
